@@ -1,0 +1,1 @@
+"""Controller blocks of the rate loops: plain numpy, no MuJoCo."""

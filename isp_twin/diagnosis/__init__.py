@@ -1,0 +1,1 @@
+"""Diagnosis: find what the model lacks from measured data (residual analysis, effect library)."""
