@@ -18,10 +18,10 @@ __all__ = ["resource_root", "model_path", "default_parameters_path", "find_scena
 def resource_root() -> Path:
     """The folder holding `models/` and `scenarios/`."""
     repo = Path(__file__).resolve().parents[1]
-    if (repo / "models" / "isp_4gimbal.xml").is_file():
+    if (repo / "models" / "params").is_dir():
         return repo
     shared = Path(sys.prefix) / "share" / "isp-twin"
-    if (shared / "models" / "isp_4gimbal.xml").is_file():
+    if (shared / "models" / "params").is_dir():
         return shared
     raise ResourceNotFound("cannot find the isp-twin models folder (broken install?)")
 
