@@ -1,0 +1,181 @@
+"""`isp-twin run SCENARIO`: simulate a scenario, print its metrics, record it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from isp_twin.atomic import write_text_atomic
+from isp_twin.errors import ScenarioError
+from isp_twin.parameters import load_parameters
+from isp_twin.resources import find_scenario
+from isp_twin.results import RunResult
+from isp_twin.units import DEG
+
+__all__ = ["add_parser", "execute"]
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "run",
+        help="simulate a scenario on the twin, print its metrics, write a Rerun recording",
+        description=(
+            "Simulate a scenario (a YAML file, or the bare name of a shipped scenario such as "
+            "turbulence_1_6Hz) on the MuJoCo twin. Closed-loop scenarios print the isolation J "
+            "(Eq. 10) per inner axis; open-loop scenarios print the Fig. 2 figures (peak rates "
+            "and dead zones). Every run writes recordings/<scenario>.rrd."
+        ),
+    )
+    p.add_argument("scenario", help="scenario file or shipped scenario name")
+    p.add_argument("--seed", type=int, default=None, help="noise seed (default: the scenario's)")
+    p.add_argument("--params", type=Path, default=None,
+                   help="parameter file (default: the scenario's 'parameters')")
+    p.add_argument("--json", type=Path, default=None, metavar="PATH",
+                   help="also write the metrics as JSON")
+    p.add_argument("--recording", type=Path, default=None, metavar="PATH",
+                   help="recording path (default: recordings/<scenario>.rrd)")
+    p.add_argument("--no-recording", action="store_true", help="do not write a recording")
+    p.add_argument("--spawn", action="store_true", help="also stream to a new Rerun viewer")
+    p.add_argument("--connect", nargs="?", const="", default=None, metavar="URL",
+                   help="also stream to a running Rerun viewer (default URL if none given)")
+    p.add_argument("--engine", choices=("twin", "fast"), default="twin",
+                   help="open-loop only: MuJoCo twin (default) or the fast Eq. 6 model")
+    p.set_defaults(execute=execute)
+
+
+def execute(args: argparse.Namespace) -> int:
+    from isp_twin.scenario import load_scenario
+
+    scenario = load_scenario(find_scenario(args.scenario))
+    params_path = args.params or scenario.parameters_path
+    params = load_parameters(params_path)
+    seed = scenario.seed if args.seed is None else args.seed
+    if seed < 0:
+        raise ScenarioError(f"--seed must be >= 0, got {seed}")
+    name = scenario.name or Path(scenario.source or args.scenario).stem
+    print(f"scenario {name}  ({scenario.source})")
+    print(f"parameters {params_path}  seed {seed}")
+
+    if scenario.kind == "open_loop":
+        result, payload = _run_open_loop(scenario, params, params_path, name, seed, args.engine)
+    else:
+        result, payload = _run_closed_loop(scenario, params, params_path, name, seed)
+
+    if args.json is not None:
+        write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
+        print(f"metrics written to {args.json}")
+    if not args.no_recording:
+        from isp_twin.recording import default_recording_path, record_run
+
+        path = args.recording or default_recording_path(name)
+        record_run(result, path, spawn=args.spawn, connect=args.connect)
+        print(f"recording written to {path}  (open it with: rerun {path})")
+    if result.interrupted:
+        print("interrupted: the recording holds the run up to the interruption", file=sys.stderr)
+        return 130
+    return 0
+
+
+def _run_closed_loop(scenario, params, params_path, name, seed):
+    from isp_twin.closed_loop import run_scenario
+
+    result = run_scenario(scenario, params=params, seed=seed, on_progress=_progress())
+    metrics = dict(result.metrics)
+    print()
+    print(f"{'axis':<10} {'J [%]':>8} {'max|w1| [deg/s]':>16} {'rms w1 [deg/s]':>15}")
+    for axis, m in metrics.items():
+        if not isinstance(m, dict) or "isolation_percent" not in m:
+            continue
+        print(f"{axis:<10} {m['isolation_percent']:>8.2f} {m['max_abs_error_deg_s']:>16.4f} "
+              f"{m['rms_error_deg_s']:>15.4f}")
+    payload = {
+        "scenario": name,
+        "parameters_file": str(params_path),
+        "seed": seed,
+        "metrics": metrics,
+    }
+    return result, payload
+
+
+def _run_open_loop(scenario, params, params_path, name, seed, engine):
+    from isp_twin.open_loop import PAPER_FIG2, analyse_open_loop, simulate_open_loop
+
+    ol = scenario.open_loop
+    response = simulate_open_loop(
+        params,
+        axis=ol.axis,
+        amplitude_digits=ol.command.amplitude_digits,
+        freq_hz=ol.command.freq_hz,
+        offset_digits=ol.command.offset_digits,
+        duration_s=scenario.duration_s,
+        initial_angle_rad=ol.initial_angle_deg * DEG,
+        engine=engine,
+    )
+    skip = min(2.0 / ol.command.freq_hz, 0.5 * scenario.duration_s)
+    figures = analyse_open_loop(response.t, response.omega, response.angle, skip_s=skip)
+    print(f"\nopen loop, {ol.axis}, engine {engine}: after {skip:g} s of start-up")
+    print(f"{'regime':<8} {'peak [deg/s]':>13}")
+    for regime, peak in figures.peak_deg_s.items():
+        text = "not visited" if np.isnan(peak) else f"{peak:13.3f}"
+        print(f"{regime:<8} {text:>13}")
+    print(f"\n{'figure':<28} {'twin':>10} {'paper':>10}")
+    rows = (
+        ("peak positive [deg/s]", figures.peak_positive_deg_s, PAPER_FIG2["peak_positive_deg_s"]),
+        ("peak negative [deg/s]", figures.peak_negative_deg_s, PAPER_FIG2["peak_negative_deg_s"]),
+        ("dead zone, Y > 0 [ms]", figures.mean_dead_zone_ms("R"), PAPER_FIG2["dead_zone_right_ms"]),
+        ("dead zone, Y <= 0 [ms]", figures.mean_dead_zone_ms("L"), PAPER_FIG2["dead_zone_left_ms"]),
+    )
+    for label, ours, paper in rows:
+        text = "none" if np.isnan(ours) else f"{ours:10.2f}"
+        print(f"{label:<28} {text:>10} {paper:>10.2f}")
+    result = RunResult(
+        scenario=name,
+        scenario_text=scenario.text,
+        parameters_file=str(params_path),
+        parameters_text=Path(params_path).read_text(),
+        seed=seed,
+        t=response.t,
+        signals={
+            f"{ol.axis}/omega_relative": response.omega,
+            f"{ol.axis}/command": response.u,
+            f"{ol.axis}/angle": response.angle,
+        },
+        joint_angles={ol.axis: response.angle},
+        metrics=_json_ready(figures.as_dict()),
+    )
+    payload = {
+        "scenario": name,
+        "parameters_file": str(params_path),
+        "seed": seed,
+        "engine": engine,
+        "open_loop": result.metrics,
+    }
+    return result, payload
+
+
+def _json_ready(obj):
+    """NaN -> None so the JSON is standard."""
+    if isinstance(obj, dict):
+        return {k: _json_ready(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_json_ready(v) for v in obj]
+    if isinstance(obj, float) and np.isnan(obj):
+        return None
+    return obj
+
+
+def _progress():
+    """A progress callback for terminals, None otherwise."""
+    if not sys.stderr.isatty():
+        return None
+
+    def report(t: float, duration: float) -> None:
+        print(f"\r  t = {t:6.2f} / {duration:.2f} s", end="", file=sys.stderr, flush=True)
+        if t >= duration:
+            print(file=sys.stderr)
+
+    return report
