@@ -53,6 +53,7 @@ __all__ = [
     "line_of_sight",
     "read_series",
     "read_text",
+    "read_views",
     "record_residuals",
     "record_run",
     "verify_recording",
@@ -399,6 +400,30 @@ def read_text(path: str | Path, entity: str) -> str:
     raise ResourceNotFound(f"recording '{path}' has no text document at {entity}")
 
 
+def read_views(path: str | Path) -> list[tuple[str, str, str]]:
+    """The views of a recording's default layout: (name, origin, kind), e.g.
+    ``("inner_az rates [deg/s]", "/inner_az/rates", "TimeSeries")``.
+
+    Raises:
+        ResourceNotFound: the file does not exist or holds no layout.
+    """
+    from rerun.chunk import RrdReader
+
+    if not Path(path).is_file():
+        raise ResourceNotFound(f"recording '{path}' does not exist")
+    reader = RrdReader(path)
+    if not reader.blueprints():
+        raise ResourceNotFound(f"recording '{path}' holds no layout (blueprint)")
+    views = []
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        batch = chunk.to_record_batch()
+        if "ViewBlueprint:space_origin" in batch.schema.names:
+            columns = ("display_name", "space_origin", "class_identifier")
+            rows = zip(*(batch.column(f"ViewBlueprint:{c}").to_pylist() for c in columns))
+            views += [(name[0], origin[0], kind[0]) for name, origin, kind in rows]
+    return sorted(views)
+
+
 def _batches(path: str | Path, entity: str, *, static: bool):
     from rerun.chunk import RrdReader
 
@@ -718,7 +743,7 @@ def _run_blueprint(groups: Mapping[str, Mapping[str, list[str]]], *, has_scene: 
             continue
         for group in axis_groups:
             if group != "follow":
-                last.append(_series_view(f"/{axis}/{group}", f"{axis} {group}"))
+                last.append(_series_view(f"/{axis}/{group}", f"{axis} {_GROUP_TITLES[group]}"))
     if last:
         columns.append(rrb.Vertical(*last, name="outer and other"))
     return rrb.Blueprint(rrb.Horizontal(*columns), collapse_panels=False)

@@ -19,6 +19,7 @@ from isp_twin.recording import (
     line_of_sight,
     read_series,
     read_text,
+    read_views,
     record_residuals,
     record_run,
     verify_recording,
@@ -146,6 +147,19 @@ def test_3d_joints_are_decimated_and_follow_the_angles(run, recorded):
         line_of_sight({k: np.asarray(v)[::20] for k, v in run.joint_angles.items()}, len(t)),
         atol=1e-6,
     )
+
+
+def test_layout_has_3d_per_axis_series_follow_error_and_metadata_views(recorded):
+    origins = {(origin, kind) for _, origin, kind in read_views(recorded)}
+    expected = {("/scene", "3D")}
+    for axis in ("inner_az", "inner_el"):
+        for group in ("rates", "drive", "friction", "regime"):
+            expected.add((f"/{axis}/{group}", "TimeSeries"))
+    for doc in ("run", "scenario", "parameters", "metrics"):
+        expected.add((f"/metadata/{doc}", "TextDocument"))
+    assert expected <= origins
+    names = [name for name, _, _ in read_views(recorded)]
+    assert "outer follow error [deg]" in names
 
 
 # --- kinematics -----------------------------------------------------------
