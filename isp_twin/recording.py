@@ -26,11 +26,14 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
+import threading
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -130,6 +133,7 @@ _SIGNALS: dict[str, _SignalStyle] = {
     "nfc": _SignalStyle("drive", 1.0, "digits", "NFC feed-forward"),
     "friction": _SignalStyle("friction", 1.0, "N_m", "friction torque"),
     "regime": _SignalStyle("regime", 1.0, "index", "regime 0 R+, 1 R-, 2 L+, 3 L-"),
+    "angle": _SignalStyle("angle", _RAD_TO_DEG, "deg", "gimbal angle"),
     "follow_error": _SignalStyle("follow", _RAD_TO_DEG, "deg", "follow error"),
 }
 _OTHER = "other"
@@ -139,6 +143,7 @@ _GROUP_TITLES = {
     "drive": "command and NFC [digits]",
     "friction": "friction torque [N·m]",
     "regime": "friction regime (0 R+, 1 R-, 2 L+, 3 L-)",
+    "angle": "gimbal angle [deg]",
     _OTHER: "other signals [SI]",
 }
 
@@ -445,7 +450,9 @@ def _write(path: Path, log, blueprint: rrb.Blueprint, *, spawn: bool, connect: s
     an unreachable viewer can neither block nor spoil the file.
     """
     recording_id = str(uuid.uuid4())
-    with atomic_path(path) as tmp:
+    # A Ctrl-C here would cost the whole recording of a finished run: the
+    # file (a fraction of a second) is completed first, then the interrupt raised.
+    with _sigint_deferred(), atomic_path(path) as tmp:
         stream = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
         try:
             # Saved before anything is logged, so the file holds everything.
@@ -453,12 +460,35 @@ def _write(path: Path, log, blueprint: rrb.Blueprint, *, spawn: bool, connect: s
             log(stream)
             stream.flush()
         finally:
-            # Closing writes the footer; also on Ctrl-C, before atomic_path removes tmp.
+            # Closing writes the footer; also on error, before atomic_path removes tmp.
             stream.disconnect()
         _make_readable(tmp)
     if spawn or connect is not None:
         _send_to_viewer(path, log, blueprint, recording_id, spawn=spawn, connect=connect)
     return path
+
+
+@contextmanager
+def _sigint_deferred() -> Iterator[None]:
+    """Hold SIGINT until the block ends, then raise KeyboardInterrupt.
+
+    Only in the main thread with Python's default handler installed;
+    elsewhere the block runs unchanged.
+    """
+    if (
+        threading.current_thread() is not threading.main_thread()
+        or signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield
+        return
+    received: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if received:
+        raise KeyboardInterrupt
 
 
 def _send_to_viewer(
@@ -727,7 +757,7 @@ def _run_blueprint(groups: Mapping[str, Mapping[str, list[str]]], *, has_scene: 
             continue
         views = [
             _series_view(f"/{axis}/{group}", f"{axis} {_GROUP_TITLES[group]}")
-            for group in ("rates", "drive", "friction", "regime", _OTHER)
+            for group in ("rates", "drive", "friction", "regime", "angle", _OTHER)
             if group in groups[axis]
         ]
         columns.append(rrb.Vertical(*views, name=axis))

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
 import socket
 import subprocess
 import time
@@ -287,6 +289,24 @@ def test_ctrl_c_while_recording_keeps_the_previous_complete_file(run, tmp_path, 
     assert target.read_bytes() == before
     assert not leftovers(tmp_path)
     verify_recording(target)
+
+
+def test_real_ctrl_c_while_recording_finishes_the_file_then_interrupts(run, tmp_path, monkeypatch):
+    log_signals = recording._log_signals
+
+    def ctrl_c_then_log(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)
+        log_signals(*args, **kwargs)
+
+    monkeypatch.setattr(recording, "_log_signals", ctrl_c_then_log)
+    target = tmp_path / "finished.rrd"
+    with pytest.raises(KeyboardInterrupt):
+        record_run(run, target)
+    verify_recording(target)
+    assert not leftovers(tmp_path)
+    _, gyro = read_series(target, "/inner_az/rates/gyro_deg_s")
+    assert len(gyro) == len(run.t)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
 def test_signal_of_wrong_length_is_refused_before_writing(run, tmp_path):
