@@ -1,0 +1,203 @@
+"""The paper's open-loop identification experiments, generated from a model.
+
+Eq. 7 drives one gimbal open loop with
+``u = amplitude*cos(2*pi*f*t) + offset`` digits (950, 0.5 Hz, -200 digits,
+2000 samples at 1 ms) and records the gyro rate and the resolver angle. Here
+the run is simulated with known parameters and written in the measured-data
+format (`isp_twin.measured`), with realistic sensor errors:
+
+* gyro: white noise of `gyro_noise_deg_s` (1 sigma) on the rate;
+* resolver: the angle rounded to `resolver_lsb_deg` (16 bit per turn by default).
+
+The exact Eq. 7 input, started at 0 deg, drives the inner azimuth axis of
+Table 2 into its -4 deg stop after about 1 s (the L- regime is fast), and data
+at a stop is not described by Eq. 6. `PAPER_SET` therefore holds four
+variations (amplitude, offset, start angle, frequency) chosen by simulating
+Table 2 so that the angle stays inside +-3.9 deg and each of the four regimes
+is visited by at least 120 moving samples in every set.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from isp_twin.axis_model import simulate
+from isp_twin.errors import ParameterError
+from isp_twin.measured import MeasuredData
+from isp_twin.parameters import AXES, ParameterSet
+from isp_twin.units import DEG
+
+__all__ = [
+    "Excitation",
+    "PAPER_SET",
+    "EQ7",
+    "GYRO_NOISE_DEG_S",
+    "RESOLVER_LSB_DEG",
+    "INNER_STOP_DEG",
+    "generate_openloop",
+    "generate_set",
+]
+
+#: Gyro rate noise, 1 sigma [deg/s]: a tactical-grade FOG at 1 kHz (assumption).
+GYRO_NOISE_DEG_S = 0.02
+#: Resolver resolution [deg]: 16 bit per turn.
+RESOLVER_LSB_DEG = 360.0 / 2**16
+#: The inner gimbals' hard stops [deg] (the paper's +-4 deg inner travel).
+INNER_STOP_DEG = 4.0
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """One open-loop run: ``u = amplitude*cos(2*pi*freq*t) + offset`` [digits].
+
+    Attributes:
+        amplitude_digits: cosine amplitude [digits].
+        freq_hz: frequency [Hz].
+        offset_digits: constant offset [digits].
+        initial_angle_deg: gimbal angle at t = 0 [deg].
+        n_samples: number of samples.
+        dt: sample period [s].
+        name: label, used as the file stem.
+    """
+
+    amplitude_digits: float = 950.0
+    freq_hz: float = 0.5
+    offset_digits: float = -200.0
+    initial_angle_deg: float = 0.0
+    n_samples: int = 2000
+    dt: float = 1e-3
+    name: str = "eq7"
+
+    def command(self) -> tuple[np.ndarray, np.ndarray]:
+        """(t [s], u [digits]), shape (n_samples,)."""
+        t = np.arange(self.n_samples) * self.dt
+        u = self.amplitude_digits * np.cos(2 * math.pi * self.freq_hz * t) + self.offset_digits
+        return t, u
+
+
+#: The exact input of Eq. 7.
+EQ7 = Excitation()
+#: Four variations of Eq. 7 that visit all regimes without reaching a stop
+#: (see module docstring; chosen for the inner azimuth axis of Table 2).
+PAPER_SET: tuple[Excitation, ...] = (
+    Excitation(750, 0.5, 0, -3.0, name="set1_a750_f0.5_y-3"),
+    Excitation(750, 0.5, -100, 1.5, name="set2_a750_o-100_y1.5"),
+    Excitation(750, 1.0, 0, -3.0, name="set3_a750_f1_y-3"),
+    Excitation(950, 0.5, 0, -1.5, name="set4_a950_f0.5_y-1.5"),
+)
+
+
+def _stop_rad(axis: str) -> float | None:
+    return INNER_STOP_DEG * DEG if axis.startswith("inner") else None
+
+
+def _run_fast(params: ParameterSet, axis: str, exc: Excitation, u: np.ndarray):
+    rate = params.axis(axis).rate_params()
+    res = simulate(rate, u, exc.dt, angle0=exc.initial_angle_deg * DEG, angle_limit=_stop_rad(axis))
+    return res.omega, res.angle
+
+
+def _run_twin(params: ParameterSet, axis: str, exc: Excitation, u: np.ndarray):
+    from isp_twin.twin import GIMBALS, Twin  # MuJoCo only when asked for
+
+    twin = Twin(params)
+    index = list(GIMBALS).index(axis)
+    twin.reset({axis: exc.initial_angle_deg * DEG})
+    omega = np.empty(exc.n_samples)
+    angle = np.empty(exc.n_samples)
+    command = np.zeros(len(GIMBALS))
+    state = twin.state()
+    omega[0], angle[0] = state.rate[index], state.angle[index]
+    for k in range(1, exc.n_samples):
+        command[index] = u[k - 1]
+        twin.step(command)
+        state = twin.state()
+        omega[k], angle[k] = state.rate[index], state.angle[index]
+    return omega, angle
+
+
+def generate_openloop(
+    params: ParameterSet,
+    axis: str = "inner_az",
+    amplitude_digits: float = 950.0,
+    freq_hz: float = 0.5,
+    offset_digits: float = -200.0,
+    n_samples: int = 2000,
+    dt: float = 1e-3,
+    gyro_noise_deg_s: float = GYRO_NOISE_DEG_S,
+    resolver_lsb_deg: float = RESOLVER_LSB_DEG,
+    seed: int = 0,
+    engine: str = "fast",
+    initial_angle_deg: float = 0.0,
+    name: str = "eq7",
+) -> MeasuredData:
+    """Simulate one open-loop run (Eq. 7 by default) as measured data.
+
+    Args:
+        params: the true parameters.
+        axis: gimbal axis (one of `AXES`).
+        amplitude_digits, freq_hz, offset_digits: the cosine input of Eq. 7.
+        n_samples, dt: length and sample period [s]; dt must equal the
+            parameter set's sample time (the parameters are per sample).
+        gyro_noise_deg_s: white rate noise, 1 sigma [deg/s]; 0 for none.
+        resolver_lsb_deg: angle quantization [deg]; 0 for none.
+        seed: noise seed (same seed -> identical data).
+        engine: "fast" (Eq. 6, `isp_twin.axis_model`) or "twin" (MuJoCo).
+        initial_angle_deg: angle at t = 0 [deg].
+        name: the run's name (file stem).
+
+    Returns:
+        `MeasuredData` with u in digits, SI rate and angle.
+    """
+    if axis not in AXES:
+        raise ParameterError(f"axis '{axis}' unknown; allowed: {', '.join(AXES)}")
+    if not math.isclose(dt, params.sample_time_s, rel_tol=1e-9):
+        raise ParameterError(
+            f"dt {dt} s differs from the parameter set's sample_time_s {params.sample_time_s} s"
+        )
+    if engine not in ("fast", "twin"):
+        raise ParameterError(f"engine '{engine}' unknown; allowed: fast, twin")
+    exc = Excitation(amplitude_digits, freq_hz, offset_digits, initial_angle_deg, n_samples, dt, name)
+    t, u = exc.command()
+    run = _run_fast if engine == "fast" else _run_twin
+    omega, angle = run(params, axis, exc, u)
+    rng = np.random.default_rng(seed)
+    if gyro_noise_deg_s > 0:
+        omega = omega + rng.normal(0.0, gyro_noise_deg_s * DEG, size=omega.shape)
+    if resolver_lsb_deg > 0:
+        lsb = resolver_lsb_deg * DEG
+        angle = np.round(angle / lsb) * lsb
+    return MeasuredData(name=name, t=t, u=u, omega=omega, angle=angle, source=None, dt=dt)
+
+
+def generate_set(
+    params: ParameterSet,
+    axis: str = "inner_az",
+    excitations: tuple[Excitation, ...] = PAPER_SET,
+    gyro_noise_deg_s: float = GYRO_NOISE_DEG_S,
+    resolver_lsb_deg: float = RESOLVER_LSB_DEG,
+    seed: int = 0,
+    engine: str = "fast",
+) -> list[MeasuredData]:
+    """Several runs (default `PAPER_SET`), run i with noise seed ``seed + i``."""
+    return [
+        generate_openloop(
+            params,
+            axis,
+            e.amplitude_digits,
+            e.freq_hz,
+            e.offset_digits,
+            e.n_samples,
+            e.dt,
+            gyro_noise_deg_s,
+            resolver_lsb_deg,
+            seed + i,
+            engine,
+            e.initial_angle_deg,
+            e.name,
+        )
+        for i, e in enumerate(excitations)
+    ]

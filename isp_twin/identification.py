@@ -1,0 +1,531 @@
+"""Identification of the per-regime parameters of Eq. 6 from open-loop runs.
+
+The pipeline (Eq. 8-9 of the paper, made identifiable):
+
+1. **What the data determine.** Rate data fix only the rate form of Eq. 6
+   (`RateParams`): per regime the pole a, the gain b·Ke, the static and
+   Coulomb levels b·Ts, b·Tc and the curve factor alpha (20 numbers per
+   axis). b alone is the paper's "multi-value problem": scaling b up and
+   Ke, Ts, Tc down leaves every response unchanged. b is therefore **fixed to
+   its prior** (default the paper's Table 2) and Ke, Ts, Tc follow from the
+   identified products; b gets no confidence interval.
+2. **Which regimes the data visit.** A regime (side of the angle x direction)
+   with fewer than `Settings.min_regime_samples` moving samples is not
+   identified: its five numbers are frozen at the prior, it is written with
+   ``identified: false`` and gets no interval.
+3. **Initial estimate.** One-step-ahead (equation-error) least squares per
+   regime: for a fixed alpha, Eq. 6 is linear in (a, b·Ke, b·Tc, b·(Ts-Tc)),
+   and break-away samples add b·Ke and b·Ts; alpha is found by a grid. It is
+   biased by rate noise, so it only centres the search.
+4. **Global search.** Differential evolution (scipy, seeded, vectorized: the
+   population is the batch dimension of `isp_twin.axis_model.simulate`)
+   minimizes Eq. 9, the RMS of the simulated-rate error over all sets at once.
+5. **Local refinement.** `scipy.optimize.least_squares` on the residual
+   vector, with a batched finite-difference Jacobian.
+6. **Confidence intervals** from the Jacobian: ``cov = s^2 (J^T J)^-1``,
+   inflated by ``(1 + rho)/(1 - rho)`` for a lag-1 residual correlation
+   rho > 0 (effective sample size), with the Student t quantile. A
+   quantity is reported identifiable when its regime is visited and its
+   interval, computed with a noise floor of 0.1 % of the rate RMS, is below
+   half its value (so noise-free data does not make everything "identifiable").
+
+The simulation is driven by the measured angle (teacher forcing) to pick the
+half-plane: the friction depends on where the gimbal really is, and a
+simulated angle that drifts by a fraction of a degree would switch regimes at
+the wrong time and make the cost jump. Eq. 6 switches regime exactly at
+angle 0, so even resolver quantization matters: one LSB (0.0055 deg) at
+3 deg/s moves the crossing by two samples, and the L and R dynamics differ so
+much that the rate error then lasts tens of samples. The side is therefore
+taken from the angle fused with the integrated gyro rate (`fused_angle`);
+``side="raw"`` uses the angle as measured. For a free-spinning motor (angle of
+many turns) the half-plane split has no meaning: `Settings.side` can fix the
+side (``right``/``left``) or wrap the angle to (-pi, pi] (``wrap``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from isp_twin.axis_model import simulate
+from isp_twin.errors import DataError, ParameterError
+from isp_twin.friction import regime_index
+from isp_twin.measured import MeasuredData
+from isp_twin.parameters import REGIMES, AxisParams, RateParams, RegimeParams
+from isp_twin.units import DEG
+
+__all__ = [
+    "RATE_FIELDS",
+    "SIDES",
+    "Settings",
+    "IdentificationResult",
+    "fused_angle",
+    "side_angle",
+    "regime_visits",
+    "equation_error_estimate",
+    "simulate_data",
+    "residuals",
+    "rmse",
+    "identify",
+    "to_axis_params",
+]
+
+#: Names of the five rate-form quantities per regime, `RateParams.to_vector` order.
+RATE_FIELDS: tuple[str, ...] = ("pole", "gain", "static", "coulomb", "alpha")
+#: How the half-plane is chosen from the measured angle.
+SIDES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
+#: Window of the angle/rate fusion [samples] (`fused_angle`).
+FUSION_WINDOW = 201
+
+#: Noise floor for the identifiability test, relative to the rate RMS.
+_REFERENCE_NOISE = 1e-3
+#: Largest relative 95 % half-width of an identifiable quantity.
+_MAX_RELATIVE_CI = 0.5
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Identification settings.
+
+    Attributes:
+        seed: seed of the evolutionary search (same seed -> same result).
+        generations: differential-evolution generations (0: skip the search).
+        population: population size per generation.
+        refine: run the least-squares refinement.
+        refine_evaluations: budget of the refinement [Jacobian evaluations].
+        min_regime_samples: moving samples below which a regime is not identified.
+        rest_rate_deg_s: |rate| at or below this counts as "at rest" [deg/s].
+        side: half-plane selection, one of `SIDES`.
+        search_factor: DE bounds are [x0/f, x0*f] around the initial estimate
+            (for the pole: on 1 - a).
+        confidence: level of the intervals.
+    """
+
+    seed: int = 0
+    generations: int = 20
+    population: int = 40
+    refine: bool = True
+    refine_evaluations: int = 30
+    min_regime_samples: int = 50
+    rest_rate_deg_s: float = 0.1
+    side: str = "measured"
+    search_factor: float = 3.0
+    confidence: float = 0.95
+
+    def __post_init__(self):
+        if self.side not in SIDES:
+            raise ParameterError(f"side '{self.side}' unknown; allowed: {', '.join(SIDES)}")
+        if self.population < 5 or self.generations < 0 or self.search_factor <= 1:
+            raise ParameterError("population >= 5, generations >= 0, search_factor > 1 required")
+
+
+@dataclass(frozen=True)
+class IdentificationResult:
+    """The outcome of `identify` for one axis.
+
+    Vectors of shape (20,) follow `RateParams.to_vector` order: per regime
+    (R+, R-, L+, L-) the quantities of `RATE_FIELDS`, SI rate form.
+
+    Attributes:
+        rate: identified rate-form parameters, arrays (4,).
+        ci95: 95 % half-widths, shape (20,); NaN where not identifiable.
+        identifiable: shape (20,), True where the data determine the quantity.
+        visits: moving samples per regime, shape (4,).
+        regime_identified: per regime, False where the prior was kept.
+        rmse_train: per training set, RMS rate error [rad/s].
+        cost: Eq. 9 over all training sets [rad/s].
+        history: best cost per generation, then per refinement step [rad/s].
+        initial_cost: Eq. 9 at the equation-error estimate [rad/s].
+        rho: lag-1 autocorrelation of the residuals.
+        evaluations: simulated parameter sets in total.
+        wall_time_s: duration [s].
+        status: short text on how the search ended.
+    """
+
+    rate: RateParams
+    ci95: np.ndarray
+    identifiable: np.ndarray
+    visits: np.ndarray
+    regime_identified: tuple[bool, ...]
+    rmse_train: dict[str, float]
+    cost: float
+    history: tuple[float, ...]
+    initial_cost: float
+    rho: float
+    evaluations: int
+    wall_time_s: float
+    status: str
+    settings: Settings = field(default_factory=Settings)
+
+    @property
+    def vector(self) -> np.ndarray:
+        return self.rate.to_vector()
+
+
+# ------------------------------------------------------------ data views
+
+
+def fused_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
+    """The measured angle refined by the integrated rate [rad], shape (N,).
+
+    ``integral(omega) + smooth(angle - integral(omega))`` with a centred moving
+    average of `window` samples: the rate supplies the fine timing, the angle
+    the absolute level (and removes gyro drift slower than the window).
+    """
+    integral = np.cumsum(data.omega) * data.dt
+    gap = data.angle - integral
+    n = gap.shape[0]
+    w = max(1, min(window, n if n % 2 else n - 1))
+    padded = np.pad(gap, w // 2, mode="edge")
+    smooth = np.convolve(padded, np.ones(w) / w, mode="valid")
+    return integral + smooth
+
+
+def side_angle(data: MeasuredData, side: str = "measured") -> np.ndarray:
+    """The angle [rad] whose sign selects the half-plane (see module doc)."""
+    if side == "measured":
+        return fused_angle(data)
+    if side == "raw":
+        return data.angle
+    if side == "wrap":
+        return np.angle(np.exp(1j * data.angle))
+    if side == "right":
+        return np.ones_like(data.angle)
+    if side == "left":
+        return -np.ones_like(data.angle)
+    raise ParameterError(f"side '{side}' unknown; allowed: {', '.join(SIDES)}")
+
+
+def regime_visits(data: Sequence[MeasuredData], side: str = "measured", rest_rate_deg_s: float = 0.1) -> np.ndarray:
+    """Moving samples (|rate| above the rest level) per regime, shape (4,)."""
+    counts = np.zeros(4, dtype=int)
+    for d in data:
+        moving = np.abs(d.omega) > rest_rate_deg_s * DEG
+        r = regime_index(side_angle(d, side), d.omega)[moving]
+        counts += np.bincount(r, minlength=4)
+    return counts
+
+
+def _omega0(d: MeasuredData, rest: float) -> float:
+    return 0.0 if abs(d.omega[0]) <= rest else float(d.omega[0])
+
+
+def simulate_data(rate: RateParams, d: MeasuredData, side: str = "measured", rest_rate_deg_s: float = 0.1):
+    """Eq. 6 driven by the run's command and measured angle; `AxisResponse`."""
+    return simulate(
+        rate,
+        d.u,
+        d.dt,
+        omega0=_omega0(d, rest_rate_deg_s * DEG),
+        angle0=float(d.angle[0]),
+        angle_measured=side_angle(d, side),
+    )
+
+
+def residuals(rate: RateParams, data: Sequence[MeasuredData], side: str = "measured", rest_rate_deg_s: float = 0.1) -> np.ndarray:
+    """Simulated minus measured rate [rad/s], sample 0 of each set left out.
+
+    Shape (P, M) for batched params (M = total samples), else (M,).
+    """
+    parts = [
+        simulate_data(rate, d, side, rest_rate_deg_s).omega[..., 1:] - d.omega[1:] for d in data
+    ]
+    return np.concatenate(parts, axis=-1)
+
+
+def rmse(rate: RateParams, data: Sequence[MeasuredData], side: str = "measured", rest_rate_deg_s: float = 0.1) -> float | np.ndarray:
+    """Eq. 9: RMS rate error over all sets at once [rad/s]."""
+    e = residuals(rate, data, side, rest_rate_deg_s)
+    return np.sqrt(np.mean(e**2, axis=-1))
+
+
+# ------------------------------------------------------------ initial estimate
+
+
+def equation_error_estimate(
+    data: Sequence[MeasuredData],
+    prior: RateParams,
+    side: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    min_samples: int = 50,
+) -> RateParams:
+    """One-step-ahead least squares per regime (see module doc, step 3).
+
+    Regimes with fewer than `min_samples` usable samples, or whose fit is
+    not physical (a outside (0, 1), a non-positive level), keep the prior.
+    """
+    rest = rest_rate_deg_s * DEG
+    rows: list[list[np.ndarray]] = [[] for _ in range(4)]
+    for d in data:
+        w0, w1, u0 = d.omega[:-1], d.omega[1:], d.u[:-1]
+        y = side_angle(d, side)[:-1]
+        moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
+        breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(u0))
+        r_move = regime_index(y, w0)
+        r_break = regime_index(y, u0)
+        for r in range(4):
+            m = moving & (r_move == r)
+            b = breakaway & (r_break == r)
+            rows[r].append(
+                np.column_stack(
+                    [
+                        np.r_[w0[m], np.zeros(b.sum())],
+                        np.r_[u0[m], u0[b]],
+                        np.r_[np.sign(w0[m]), np.sign(u0[b])],
+                        np.r_[np.abs(w0[m]), np.zeros(b.sum())],
+                        np.r_[np.zeros(m.sum()), np.ones(b.sum())],
+                        np.r_[w1[m], w1[b]],
+                    ]
+                )
+            )
+    x = prior.to_vector().reshape(4, 5).copy()
+    for r in range(4):
+        table = np.concatenate(rows[r]) if rows[r] else np.empty((0, 6))
+        if table.shape[0] < min_samples:
+            continue
+        w0, u0, sgn, speed, brk, w1 = table.T
+        best = None
+        for alpha in prior.alpha[r] * np.geomspace(0.1, 10.0, 41):
+            shape = np.where(brk > 0, 1.0, np.exp(-alpha * speed))
+            a_mat = np.column_stack([w0, u0, -sgn, -sgn * shape])
+            theta, *_ = np.linalg.lstsq(a_mat, w1, rcond=None)
+            sse = float(np.sum((a_mat @ theta - w1) ** 2))
+            if best is None or sse < best[0]:
+                best = (sse, theta, alpha)
+        _, (a, g, c, s_minus_c), alpha = best
+        s = c + s_minus_c
+        if 0.0 < a < 1.0 and g > 0 and c > 0 and s > 0:
+            x[r] = (a, g, s, c, alpha)
+    return RateParams.from_vector(x.ravel())
+
+
+# ------------------------------------------------------------ search
+
+
+def _bounds(x0: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:
+    lo, hi = x0 / factor, x0 * factor
+    pole = np.arange(x0.size) % 5 == 0
+    slack = 1.0 - x0[pole]
+    lo[pole] = 1.0 - np.minimum(slack * factor, 0.999)
+    hi[pole] = 1.0 - slack / factor
+    return lo, hi
+
+
+def _confidence(jac: np.ndarray, resid: np.ndarray, breaks: list[int], level: float, floor: float):
+    """Half-widths from the Jacobian; also the ones at the noise floor, and rho."""
+    from scipy.stats import t as student_t
+
+    n, p = jac.shape
+    dof = max(n - p, 1)
+    s2 = float(resid @ resid) / dof
+    # Lag-1 autocorrelation inside each set (not across set boundaries).
+    num = den = 0.0
+    for lo, hi in zip(breaks[:-1], breaks[1:]):
+        e = resid[lo:hi] - resid[lo:hi].mean()
+        num += float(e[1:] @ e[:-1])
+        den += float(e @ e)
+    rho = num / den if den > 0 else 0.0
+    inflate = (1 + rho) / (1 - rho) if 0 < rho < 1 else 1.0
+    n_eff = max(n / inflate, p + 1.0)
+    q = float(student_t.ppf(0.5 + level / 2, max(n_eff - p, 1)))
+    # Columns scaled to unit norm: the raw J^T J spans ~20 decades and a plain
+    # inverse loses the weakly determined directions.
+    norm = np.linalg.norm(jac, axis=0)
+    norm = np.where(norm > 0, norm, 1.0)
+    js = jac / norm
+    inv = np.linalg.pinv(js.T @ js, rcond=1e-12, hermitian=True)
+    var = np.clip(np.diag(inv), 0, None) / norm**2
+    ci = q * np.sqrt(s2 * inflate * var)
+    ci_floor = q * np.sqrt(max(s2, floor**2) * inflate * var)
+    return ci, ci_floor, rho
+
+
+def identify(
+    data: Sequence[MeasuredData],
+    prior: AxisParams,
+    settings: Settings = Settings(),
+    progress: Callable[[str, int, float], None] | None = None,
+) -> IdentificationResult:
+    """Identify one axis from open-loop runs (all sets in one cost, Eq. 9).
+
+    Args:
+        data: the identification runs (same sample period; command in the
+            unit the prior's Ke refers to).
+        prior: prior parameters: b of every regime, and the values kept for
+            regimes the data do not visit.
+        settings: search budget, seed, regime rules.
+        progress: called as ``progress(stage, step, best_cost_rad_s)`` with
+            stage "search" (per generation) or "refine".
+
+    Raises:
+        DataError: no data, mixed sample periods, or no regime visited.
+    """
+    from scipy.optimize import differential_evolution, least_squares
+
+    start = time.perf_counter()
+    if not data:
+        raise DataError("no identification data given")
+    dts = {round(d.dt, 12) for d in data}
+    if len(dts) > 1:
+        raise DataError(f"identification sets differ in sample period: {sorted(dts)} s")
+    s = settings
+    prior_rate = prior.rate_params()
+    visits = regime_visits(data, s.side, s.rest_rate_deg_s)
+    visited = visits >= s.min_regime_samples
+    if not visited.any():
+        raise DataError(
+            f"no regime has {s.min_regime_samples} moving samples (visits R+,R-,L+,L-: "
+            f"{', '.join(map(str, visits))}); nothing to identify"
+        )
+    free = np.repeat(visited, 5)
+    x_init = equation_error_estimate(data, prior_rate, s.side, s.rest_rate_deg_s, s.min_regime_samples)
+    base = prior_rate.to_vector()
+    base[free] = x_init.to_vector()[free]
+    x0 = base[free]
+    evaluations = 0
+
+    def full(xf: np.ndarray) -> RateParams:
+        xf = np.atleast_2d(xf)
+        out = np.tile(base, (xf.shape[0], 1))
+        out[:, free] = xf
+        return RateParams.from_vector(out)
+
+    def batch_cost(xt: np.ndarray) -> np.ndarray:  # DE: xt shape (n_free, S)
+        nonlocal evaluations
+        evaluations += xt.shape[1]
+        return np.atleast_1d(rmse(full(xt.T), data, s.side, s.rest_rate_deg_s))
+
+    initial_cost = float(batch_cost(x0[:, None])[0])
+    history: list[float] = []
+    x_best = x0
+    status = "equation-error estimate"
+    if s.generations > 0:
+        lo, hi = _bounds(x0, s.search_factor)
+        rng = np.random.default_rng(s.seed)
+        init = lo + (hi - lo) * rng.random((s.population, x0.size))
+        init[0] = x0
+
+        def on_generation(intermediate_result):
+            history.append(float(intermediate_result.fun))
+            if progress is not None:
+                progress("search", len(history), history[-1])
+
+        de = differential_evolution(
+            lambda xt: batch_cost(xt),
+            list(zip(lo, hi)),
+            maxiter=s.generations,
+            init=init,
+            seed=s.seed,
+            vectorized=True,
+            updating="deferred",
+            polish=False,
+            tol=0.0,
+            callback=on_generation,
+        )
+        x_best = de.x
+        status = f"differential evolution, {len(history)} generations"
+    rest = s.rest_rate_deg_s
+
+    def resid(xf: np.ndarray) -> np.ndarray:
+        nonlocal evaluations
+        evaluations += 1
+        return residuals(full(xf), data, s.side, rest)[0]
+
+    def jac(xf: np.ndarray) -> np.ndarray:
+        nonlocal evaluations
+        h = 1e-6 * np.maximum(np.abs(xf), 1e-9)
+        pts = np.vstack([xf, xf + np.diag(h)])
+        evaluations += pts.shape[0]
+        e = residuals(full(pts), data, s.side, rest)
+        return ((e[1:] - e[0]) / h[:, None]).T
+
+    lb = np.where(np.arange(x0.size) % 5 == 0, 1e-6, 1e-12)
+    ub = np.where(np.arange(x0.size) % 5 == 0, 1 - 1e-9, np.inf)
+    x_best = np.clip(x_best, lb * (1 + 1e-9), ub - 1e-12)
+    if s.refine and s.refine_evaluations > 0:
+        ls = least_squares(
+            resid,
+            x_best,
+            jac=jac,
+            bounds=(lb, ub),
+            x_scale="jac",
+            max_nfev=s.refine_evaluations,
+            method="trf",
+        )
+        if ls.cost * 2 <= float(np.sum(resid(x_best) ** 2)):
+            x_best = ls.x
+        history.append(float(np.sqrt(2 * ls.cost / ls.fun.size)))
+        if progress is not None:
+            progress("refine", ls.nfev, history[-1])
+        status += f"; least-squares refinement ({ls.nfev} evaluations, {ls.message.rstrip('.')})"
+    e = resid(x_best)
+    j = jac(x_best)
+    breaks = list(np.cumsum([0] + [len(d) - 1 for d in data]))
+    scale = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
+    ci_f, ci_floor_f, rho = _confidence(j, e, breaks, s.confidence, _REFERENCE_NOISE * scale)
+    rate = full(x_best)
+    rate = RateParams.from_vector(rate.to_vector()[0])
+    ci = np.full(20, np.nan)
+    ident = np.zeros(20, dtype=bool)
+    sensitive = np.linalg.norm(j, axis=0) > 0
+    ident[free] = sensitive & (ci_floor_f < _MAX_RELATIVE_CI * np.abs(x_best))
+    ci[free] = np.where(ident[free], ci_f, np.nan)
+    rmse_train = {d.name: float(rmse(rate, [d], s.side, rest)) for d in data}
+    return IdentificationResult(
+        rate=rate,
+        ci95=ci,
+        identifiable=ident,
+        visits=visits,
+        regime_identified=tuple(bool(v) for v in visited),
+        rmse_train=rmse_train,
+        cost=float(np.sqrt(np.mean(e**2))),
+        history=tuple(history),
+        initial_cost=initial_cost,
+        rho=float(rho),
+        evaluations=evaluations,
+        wall_time_s=time.perf_counter() - start,
+        status=status,
+        settings=s,
+    )
+
+
+def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = "") -> AxisParams:
+    """The paper form (Table 2) of a result, b fixed to the prior's b.
+
+    Ke = b·Ke / b etc.; the half-widths scale the same way (b carries no
+    uncertainty: it is fixed). Regimes not identified keep the prior values.
+    """
+    b = tuple(r.b for r in prior.regimes)
+    regimes = list(result.rate.to_regimes(b))
+    ci_rate = RateParams.from_vector(np.nan_to_num(result.ci95, nan=np.nan))
+    ci_regimes: list[RegimeParams | None] = []
+    for r in range(4):
+        if not result.regime_identified[r]:
+            regimes[r] = prior.regimes[r]
+            ci_regimes.append(None)
+            continue
+        ci_regimes.append(
+            RegimeParams(
+                a=float(ci_rate.pole[r]),
+                b=float("nan"),
+                Ke=float(ci_rate.gain[r] / DEG / b[r]),
+                Ts=float(ci_rate.static[r] / DEG / b[r]),
+                Tc=float(ci_rate.coulomb[r] / DEG / b[r]),
+                alpha=float(ci_rate.alpha[r] * DEG),
+            )
+        )
+    return replace(
+        prior,
+        regimes=tuple(regimes),
+        ci95=tuple(ci_regimes),
+        identified=result.regime_identified,
+        note=note or prior.note,
+    )
+
+
+def rate_labels() -> list[str]:
+    """Labels of the (20,) vector entries, e.g. ``R+.gain``."""
+    return [f"{r}.{f}" for r in REGIMES for f in RATE_FIELDS]
