@@ -364,6 +364,8 @@ def test_connect_streams_to_a_viewer_proxy_and_still_saves(run, tmp_path):
         [recording._rerun_executable(), "--serve-grpc", "--port", str(port)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        # The `rerun` script starts the real binary as a child: own group, killed whole.
+        start_new_session=True,
     )
     try:
         deadline = time.monotonic() + 15.0
@@ -379,7 +381,7 @@ def test_connect_streams_to_a_viewer_proxy_and_still_saves(run, tmp_path):
         )
         verify_recording(path)
     finally:
-        proxy.kill()
+        os.killpg(proxy.pid, signal.SIGKILL)
         proxy.wait()
 
 
