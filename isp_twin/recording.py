@@ -70,8 +70,8 @@ _SPAWN_PORT = 9876
 #: How long to wait for a viewer to take the data before giving up [s].
 _VIEWER_TIMEOUT_S = 10.0
 
+#: Axes that get a column of views each (the paper's isolated axes).
 INNER_AXES: tuple[str, ...] = ("inner_az", "inner_el")
-OUTER_AXES: tuple[str, ...] = ("outer_az", "outer_el")
 
 #: The seven joints, outermost first, each nested in the previous one, with
 #: its rotation axis in the parent frame (hardware naming, see STYLE.md).
@@ -235,8 +235,9 @@ def record_run(
     t = np.asarray(result.t, dtype=float)
     if t.ndim != 1:
         raise DataError(f"RunResult '{result.scenario}': t must be 1-D, got shape {t.shape}")
-    signals = _check_series("signal", result.signals, t, result.scenario)
-    joints = _check_series("joint angle", result.joint_angles, t, result.scenario)
+    owner = f"RunResult '{result.scenario}'"
+    signals = _check_series("signal", result.signals, t, owner)
+    joints = _check_series("joint angle", result.joint_angles, t, owner)
     if decimate_3d < 1:
         raise DataError(f"decimate_3d must be >= 1, got {decimate_3d}")
     groups = _signal_groups(signals)
@@ -293,7 +294,9 @@ def record_residuals(
         series["angle"] = angle
     if rate is not None:
         series["rate"] = rate
-    arrays = _check_series("residual array", series, t, name)
+    if t.ndim != 1:
+        raise DataError(f"residuals '{name}': t must be 1-D, got shape {t.shape}")
+    arrays = _check_series("array", series, t, f"residuals '{name}'")
     blueprint = _residual_blueprint(name)
 
     def log(stream: rr.RecordingStream) -> None:
@@ -572,8 +575,7 @@ def _check_series(
         arr = np.asarray(values, dtype=float)
         if arr.shape != t.shape:
             raise DataError(
-                f"RunResult '{owner}': {kind} '{key}' has shape {arr.shape}, "
-                f"expected {t.shape} like t"
+                f"{owner}: {kind} '{key}' has shape {arr.shape}, expected {t.shape} like t"
             )
         out[key] = arr
     return out
@@ -584,31 +586,35 @@ def _check_series(
 
 
 def _split_name(name: str) -> tuple[str, str]:
-    axis, _, signal = name.rpartition("/")
-    return (axis or _OTHER), signal
+    """``"inner_az/gyro"`` -> ``("inner_az", "gyro")``; no axis -> ``"other"``."""
+    axis, _, kind = name.rpartition("/")
+    return (axis or _OTHER), kind
 
 
-def _style(signal: str) -> _SignalStyle:
-    return _SIGNALS.get(signal, _SignalStyle(_OTHER, 1.0, "si", signal))
+def _style(kind: str) -> _SignalStyle:
+    return _SIGNALS.get(kind, _SignalStyle(_OTHER, 1.0, "si", kind))
+
+
+def _entity(axis: str, kind: str) -> str:
+    style = _style(kind)
+    return f"/{axis}/{style.group}/{kind}_{style.unit}"
 
 
 def _signal_groups(signals: Mapping[str, np.ndarray]) -> dict[str, dict[str, list[str]]]:
     """axis -> group -> entity paths, in the order of the signals."""
     groups: dict[str, dict[str, list[str]]] = {}
     for name in signals:
-        axis, signal = _split_name(name)
-        style = _style(signal)
-        entity = f"/{axis}/{style.group}/{signal}_{style.unit}"
-        groups.setdefault(axis, {}).setdefault(style.group, []).append(entity)
+        axis, kind = _split_name(name)
+        groups.setdefault(axis, {}).setdefault(_style(kind).group, []).append(_entity(axis, kind))
     return groups
 
 
 def _log_signals(stream: rr.RecordingStream, t: np.ndarray, signals: Mapping[str, np.ndarray]):
     index = [rr.TimeColumn(TIMELINE, duration=t)]
     for name, values in signals.items():
-        axis, signal = _split_name(name)
-        style = _style(signal)
-        entity = f"/{axis}/{style.group}/{signal}_{style.unit}"
+        axis, kind = _split_name(name)
+        style = _style(kind)
+        entity = _entity(axis, kind)
         label = f"{axis} {style.label}"
         if style.group == "regime":
             # Integer regime: hold each value until the next sample.

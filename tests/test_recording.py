@@ -397,3 +397,10 @@ def test_unreachable_viewer_is_reported_and_the_file_is_still_saved(run, tmp_pat
     with pytest.raises(ResourceNotFound, match="offline.rrd"):
         record_run(run, target, connect=url)
     verify_recording(target)
+
+
+def test_residual_of_wrong_length_is_refused_naming_the_array(tmp_path):
+    t = np.arange(100) * DT
+    with pytest.raises(DataError, match="residuals 'inner_el': array 'angle'"):
+        record_residuals("inner_el", t, t, t, tmp_path / "r.rrd", angle=np.zeros(99))
+    assert list(tmp_path.iterdir()) == []
