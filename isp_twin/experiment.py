@@ -158,6 +158,12 @@ def generate_openloop(
         raise ParameterError(
             f"dt {dt} s differs from the parameter set's sample_time_s {params.sample_time_s} s"
         )
+    if n_samples < 2:
+        raise ParameterError(f"n_samples must be at least 2, got {n_samples}")
+    if gyro_noise_deg_s < 0 or resolver_lsb_deg < 0:
+        raise ParameterError(
+            f"gyro_noise_deg_s and resolver_lsb_deg must be >= 0, got {gyro_noise_deg_s}, {resolver_lsb_deg}"
+        )
     if engine not in ("fast", "twin"):
         raise ParameterError(f"engine '{engine}' unknown; allowed: fast, twin")
     exc = Excitation(amplitude_digits, freq_hz, offset_digits, initial_angle_deg, n_samples, dt, name)

@@ -1,0 +1,114 @@
+"""``isp-twin identify``: Eq. 6 parameters of one axis from open-loop runs."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+from isp_twin.atomic import write_text_atomic
+from isp_twin.identification import SIDES, Settings, identify, to_axis_params
+from isp_twin.identification_report import result_json, write_report
+from isp_twin.measured import DataMapping, load_data_description, load_measured, mapping_from_options
+from isp_twin.parameters import AXES, load_parameters, save_parameters
+from isp_twin.resources import default_parameters_path
+from isp_twin.units import DEG
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "identify",
+        help="identify the per-regime Eq. 6 parameters of one axis from open-loop data",
+        description=(
+            "Identify a, b·Ke, b·Ts, b·Tc, alpha of each friction regime (Eq. 6, 8) by "
+            "minimizing the RMS rate error over all DATA files at once (Eq. 9): "
+            "seeded differential evolution, then least squares. b is fixed to the prior. "
+            "DATA: canonical CSV (t [s], u, omega [deg/s], theta [deg]) or, with --map / "
+            "--describe, other CSV or .mat files."
+        ),
+    )
+    p.add_argument("data", nargs="+", metavar="DATA", help="identification runs")
+    p.add_argument("--validate", nargs="+", default=[], metavar="DATA", help="validation runs (Table 3)")
+    p.add_argument("--out", required=True, type=Path, help="output parameter file (YAML)")
+    p.add_argument("--prior", type=Path, default=None, help="prior parameter file (default: the paper's Table 2)")
+    p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
+    p.add_argument("--map", action="append", default=[], metavar="KEY=SOURCE[*SCALE]",
+                   help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad")
+    p.add_argument("--describe", type=Path, default=None, help="YAML data description (instead of --map)")
+    p.add_argument("--side", default="measured", choices=SIDES,
+                   help="half-plane source: measured (angle fused with rate), raw, wrap, right, left")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--generations", type=int, default=Settings.generations)
+    p.add_argument("--population", type=int, default=Settings.population)
+    p.add_argument("--refine-evaluations", type=int, default=Settings.refine_evaluations)
+    p.add_argument("--no-refine", action="store_true", help="skip the least-squares refinement")
+    p.add_argument("--min-regime-samples", type=int, default=Settings.min_regime_samples)
+    p.add_argument("--rest-rate", type=float, default=Settings.rest_rate_deg_s, metavar="DEG_S",
+                   help="|rate| counted as at rest [deg/s]")
+    p.add_argument("--report", type=Path, default=None,
+                   help="Markdown report (default: OUT with suffix _report.md; PNGs beside it)")
+    p.add_argument("--no-report", action="store_true")
+    p.add_argument("--json", type=Path, default=None, help="JSON summary")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(execute=execute)
+
+
+def _mapping(args) -> DataMapping | None:
+    if args.describe is not None:
+        return load_data_description(args.describe)
+    if args.map:
+        return mapping_from_options(args.map)
+    return None
+
+
+def execute(args) -> int:
+    mapping = _mapping(args)
+    train = [load_measured(p, mapping) for p in args.data]
+    validation = [load_measured(p, mapping) for p in args.validate]
+    prior_set = load_parameters(args.prior or default_parameters_path())
+    prior = prior_set.axis(args.axis)
+    settings = Settings(
+        seed=args.seed,
+        generations=args.generations,
+        population=args.population,
+        refine=not args.no_refine,
+        refine_evaluations=args.refine_evaluations,
+        min_regime_samples=args.min_regime_samples,
+        rest_rate_deg_s=args.rest_rate,
+        side=args.side,
+    )
+    show = not args.quiet and sys.stderr.isatty()
+
+    def progress(stage: str, step: int, cost: float) -> None:
+        if show:
+            label = "generation" if stage == "search" else "refinement, evaluations"
+            print(f"\r{label} {step}: best RMS {cost / DEG:.5g} deg/s   ", end="", file=sys.stderr, flush=True)
+
+    result = identify(train, prior, settings, progress)
+    if show:
+        print(file=sys.stderr)
+    names = ", ".join(d.name for d in train)
+    axis_params = to_axis_params(result, prior, note=f"identified by isp-twin identify from {names}")
+    out_set = replace(
+        prior_set.with_axis(args.axis, axis_params),
+        name=args.out.stem,
+        description=f"{args.axis} identified from {names} (b fixed to {prior_set.name}); "
+        f"other axes from {prior_set.name}",
+        path=None,
+    )
+    save_parameters(out_set, args.out)
+    if not args.no_report:
+        report = args.report or args.out.with_name(f"{args.out.stem}_report.md")
+        write_report(report, result, args.axis, axis_params, train, validation, args.out)
+    summary = result_json(result, args.axis, axis_params, validation)
+    if args.json is not None:
+        write_text_atomic(args.json, json.dumps(summary, indent=2) + "\n")
+    if not args.quiet:
+        visited = [r for r, ok in zip(summary["regime_identified"], result.regime_identified) if ok]
+        print(f"identified {args.axis} regimes {', '.join(visited) or 'none'} -> {args.out}")
+        print(f"RMS rate error (Eq. 9): {result.cost / DEG:.4g} deg/s over {len(train)} set(s)")
+        for name, v in summary["rmse_validation"].items():
+            print(f"  validation {name}: {v:.4g} deg/s")
+    return 0
