@@ -58,9 +58,11 @@ __all__ = [
 GIMBALS: tuple[str, ...] = AXES
 #: Turntable joints, order of `table_target`, `table_angle`, `table_rate`.
 TABLE_JOINTS: tuple[str, ...] = ("table_yaw", "table_pitch", "table_roll")
-#: |rate| at or below this counts as rest [rad/s]. Noslip holds a stuck joint
-#: to ~1e-16 rad/s; the slowest real motion after a breakaway is ~1e-4 rad/s.
-REST_RATE = 1e-7
+#: |rate| at or below this counts as rest [rad/s] (5.7e-4 deg/s). Noslip holds
+#: a stuck joint to < 1e-7 rad/s, but a stop leaves up to ~1e-4 of the
+#: previous step's rate (< 3e-6 rad/s) with either sign; friction cannot
+#: reverse a motion, so that residue is rest, not a reversal.
+REST_RATE = 1e-5
 #: Any |joint rate| above this is a runaway [rad/s] (the ISP moves < 1 rad/s).
 MAX_RATE = 100.0
 #: Any |command| above this is a runaway controller [digits] (the paper's are < 1000).
