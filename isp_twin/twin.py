@@ -139,7 +139,7 @@ class TwinState:
             sign of the motion it opposes (includes the end-stop force while a
             gimbal is pressed against its stop).
         drive: motor torque applied during the last step [N·m], shape (4,)
-            (after the motor's ±50 N·m limit).
+            (after the motor's ±200 N·m limit).
         regime: regime index used for the last step (0 R+, 1 R-, 2 L+, 3 L-), shape (4,).
     """
 
