@@ -9,7 +9,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from isp_twin.axis_model import simulate
-from isp_twin.errors import ParameterError, ScenarioError, SimulationDiverged
+from isp_twin.errors import ParameterError, ResourceNotFound, ScenarioError, SimulationDiverged
 from isp_twin.parameters import EffectSpec, RateParams, load_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.twin import PhysicalAxis, Twin
@@ -58,6 +58,8 @@ def test_twin_follows_the_discrete_model_on_the_papers_eq_4_input(twin, params):
     stuck_twin = np.mean(np.abs(omega) < 1e-3 * DEG)
     stuck_model = np.mean(model.omega == 0.0)
     assert stuck_twin == pytest.approx(stuck_model, rel=0.1)
+    warnings = [twin.data.warning[i].number for i in range(len(twin.data.warning))]
+    assert not any(warnings), f"MuJoCo warnings {warnings}"
 
 
 def test_the_mapping_reproduces_eq_6_for_one_sample_of_the_continuous_axis(params):
@@ -157,6 +159,11 @@ def test_reset_rejects_unknown_joints_and_angles_beyond_the_stops(twin):
         twin.reset({"inner_azz": 0.0})
     with pytest.raises(ScenarioError, match="outside its range"):
         twin.reset({"inner_el": 5 * DEG})
+
+
+def test_a_missing_model_file_is_named(params, tmp_path):
+    with pytest.raises(ResourceNotFound, match="nothing.xml"):
+        Twin(params, tmp_path / "nothing.xml")
 
 
 def test_runaway_and_non_finite_commands_raise_simulation_diverged(twin):
