@@ -108,7 +108,7 @@ class Settings:
     generations: int = 20
     population: int = 40
     refine: bool = True
-    refine_evaluations: int = 30
+    refine_evaluations: int = 60
     min_regime_samples: int = 50
     rest_rate_deg_s: float = 0.1
     side: str = "measured"

@@ -1,0 +1,172 @@
+"""Identification: recovery of known parameters, interval coverage, regimes not
+visited, reproducibility, and the `identify` command end to end."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from isp_twin.cli import main
+from isp_twin.errors import DataError
+from isp_twin.experiment import PAPER_SET, generate_set
+from isp_twin.identification import (
+    Settings,
+    equation_error_estimate,
+    fused_angle,
+    identify,
+    rmse,
+    to_axis_params,
+)
+from isp_twin.measured import save_measured
+from isp_twin.parameters import REGIMES, load_parameters
+from isp_twin.units import DEG
+
+# Short test data: two of the paper-set variations at 1 Hz, 1000 samples
+# (one period each); together they visit all four regimes (>= 85 samples).
+SHORT = tuple(
+    dataclasses.replace(PAPER_SET[i], freq_hz=1.0, n_samples=1000, name=f"short{i}") for i in (0, 3)
+)
+FAST = Settings(generations=0, refine_evaluations=60)
+
+
+def _data(params, noise, seed=0, excitations=SHORT):
+    lsb = 360 / 2**16 if noise else 0.0
+    return generate_set(params, "inner_az", excitations, gyro_noise_deg_s=noise, resolver_lsb_deg=lsb, seed=seed)
+
+
+def _perturbed_prior(axis):
+    """A wrong prior (start and fallback values): every number off by 20-40 %."""
+    regs = [
+        dataclasses.replace(r, a=1 - (1 - r.a) * 1.3, Ke=r.Ke * 0.7, Ts=r.Ts * 1.4, Tc=r.Tc * 0.75, alpha=r.alpha * 1.3)
+        for r in axis.regimes
+    ]
+    return dataclasses.replace(axis, regimes=tuple(regs))
+
+
+@pytest.fixture(scope="module")
+def truth(paper_params):
+    return paper_params.axis("inner_az")
+
+
+@pytest.fixture(scope="module")
+def clean_result(paper_params, truth):
+    return identify(_data(paper_params, 0.0), _perturbed_prior(truth), FAST)
+
+
+@pytest.fixture(scope="module")
+def noisy_results(paper_params, truth):
+    return [identify(_data(paper_params, 0.02, seed), truth, FAST) for seed in (0, 10, 20)]
+
+
+def test_noise_free_data_recovers_every_identifiable_quantity_within_1_percent(clean_result, truth):
+    x_true = truth.rate_params().to_vector()
+    assert clean_result.identifiable.all()
+    rel = np.abs(clean_result.vector / x_true - 1)
+    assert rel.max() < 0.01
+    assert clean_result.cost < 1e-3 * DEG
+
+
+def test_paper_form_keeps_b_and_recovers_ke_ts_tc(clean_result, truth):
+    prior = _perturbed_prior(truth)
+    axis = to_axis_params(clean_result, prior)
+    for got, true, pri in zip(axis.regimes, truth.regimes, prior.regimes):
+        assert got.b == pri.b == true.b
+        for f in ("a", "Ke", "Ts", "Tc", "alpha"):
+            assert getattr(got, f) == pytest.approx(getattr(true, f), rel=0.01)
+        assert all(math.isnan(ci.b) for ci in axis.ci95)
+
+
+def test_noisy_data_intervals_cover_the_truth(noisy_results, truth):
+    x_true = truth.rate_params().to_vector()
+    inside = []
+    for res in noisy_results:
+        ok = res.identifiable
+        inside.extend((np.abs(res.vector - x_true) <= res.ci95)[ok])
+        # The fit reaches the gyro noise (0.02 deg/s), not more.
+        assert res.cost / DEG == pytest.approx(0.02, rel=0.1)
+    assert len(inside) >= 50
+    assert np.mean(inside) >= 0.9
+
+
+def test_equation_error_start_is_close_on_clean_data(paper_params, truth):
+    est = equation_error_estimate(_data(paper_params, 0.0), _perturbed_prior(truth).rate_params())
+    # Poles and gains are nearly exact in one step; the curve levels are looser.
+    x, t = est.to_vector().reshape(4, 5), truth.rate_params().to_vector().reshape(4, 5)
+    assert np.abs(x[:, :2] / t[:, :2] - 1).max() < 0.05
+
+
+def test_fused_angle_is_exact_without_sensor_errors(paper_params):
+    d = _data(paper_params, 0.0)[0]
+    np.testing.assert_allclose(fused_angle(d), d.angle, atol=1e-12)
+
+
+def test_regime_never_visited_keeps_its_prior_and_gets_no_interval(paper_params, truth):
+    # PAPER_SET[1] stays at positive angles: only R+ and R- are visited.
+    exc = (dataclasses.replace(PAPER_SET[1], n_samples=1000, name="right_only"),)
+    data = _data(paper_params, 0.02, 0, exc)
+    prior = _perturbed_prior(truth)
+    res = identify(data, prior, FAST)
+    assert res.regime_identified == (True, True, False, False)
+    assert res.visits[2] == res.visits[3] == 0
+    assert not res.identifiable[10:].any()
+    assert np.isnan(res.ci95[10:]).all()
+    np.testing.assert_array_equal(res.vector[10:], prior.rate_params().to_vector()[10:])
+    axis = to_axis_params(res, prior)
+    assert axis.identified == (True, True, False, False)
+    assert axis.regimes[2:] == prior.regimes[2:]
+    assert axis.ci95[2] is None and axis.ci95[3] is None
+
+
+def test_same_seed_same_result_and_the_search_improves_the_start(paper_params, truth):
+    data = _data(paper_params, 0.02, excitations=SHORT[:1])
+    s = Settings(seed=7, generations=3, population=8, refine=False)
+    a = identify(data, _perturbed_prior(truth), s)
+    b = identify(data, _perturbed_prior(truth), s)
+    np.testing.assert_array_equal(a.vector, b.vector)
+    assert a.history == b.history
+    assert a.cost <= a.initial_cost
+    assert list(a.history) == sorted(a.history, reverse=True)
+
+
+def test_no_visited_regime_is_an_error(paper_params, truth):
+    data = _data(paper_params, 0.0)
+    with pytest.raises(DataError, match="no regime has 10000 moving samples"):
+        identify(data, truth, dataclasses.replace(FAST, min_regime_samples=10_000))
+
+
+def test_identify_command_end_to_end(tmp_path, paper_params, truth, capsys):
+    data = _data(paper_params, 0.02)
+    paths = [str(save_measured(d, tmp_path / f"{d.name}.csv")) for d in data]
+    out, js = tmp_path / "id.yaml", tmp_path / "id.json"
+    argv = ["identify", paths[0], paths[1], "--validate", paths[1], "--out", str(out), "--json", str(js),
+            "--generations", "1", "--population", "6", "--refine-evaluations", "60", "--quiet"]
+    assert main(argv) == 0
+    assert capsys.readouterr().err == ""  # --quiet and not a terminal: no progress
+    ps = load_parameters(out)  # directly usable by `isp-twin run`
+    assert ps.axis("inner_az").identified == (True,) * 4
+    assert ps.axis("outer_az") == paper_params.axis("outer_az")
+    summary = json.loads(js.read_text())
+    assert set(summary) >= {"parameters", "ci95", "identifiable", "rmse_train", "rmse_validation"}
+    assert summary["identifiable"]["R+"]["b"] is False and summary["ci95"]["R+"]["b"] is None
+    assert list(summary["rmse_validation"]) == [data[1].name]
+    assert summary["rmse_validation"][data[1].name] == pytest.approx(0.02, rel=0.2)
+    report = (tmp_path / "id_report.md").read_text()
+    assert "Table 2" in report and "Table 3" in report
+    assert (tmp_path / f"id_report_{data[0].name}.png").stat().st_size > 1000
+    # The identified set reproduces the data as well as the truth does.
+    got = ps.axis("inner_az").rate_params()
+    assert rmse(got, data) <= 1.05 * rmse(truth.rate_params(), data)
+
+
+def test_identify_command_bad_data_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,u,omega\n" + "".join(f"{k * 1e-3},1,{'nan' if k == 30 else 0}\n" for k in range(50)))
+    out = tmp_path / "never.yaml"
+    assert main(["identify", str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "bad.csv: row 32" in err
+    assert not out.exists()
