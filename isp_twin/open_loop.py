@@ -34,9 +34,13 @@ PAPER_FIG2 = {
     "dead_zone_left_ms": 210.0,
 }
 
-#: A rate below this counts as "at rest" for measured data [rad/s]
-#: (simulations produce exact zeros).
-REST_RATE = 1e-6
+#: A rate below this counts as "at rest" [rad/s] (1e-3 deg/s, the stick
+#: criterion of the twin's tests; the fast model produces exact zeros).
+REST_RATE = 1e-3 * DEG
+#: Rest intervals closer than this belong to one dead zone [s]: the paper
+#: measures a dead zone from the first to the last zero of the rate around a
+#: reversal, so short slips inside it (a bounce at a joint stop) do not split it.
+MERGE_GAP_S = 0.05
 
 
 @dataclass(frozen=True)
@@ -137,10 +141,18 @@ def simulate_open_loop(
     return OpenLoopResponse(t, u, omega, angle, axis, engine)
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(start, stop) index pairs of the True runs of `mask`."""
+def _runs(mask: np.ndarray, merge_gap: int = 0) -> list[tuple[int, int]]:
+    """(start, stop) index pairs of the True runs of `mask`; runs separated by
+    at most `merge_gap` False samples are joined."""
     edges = np.diff(np.r_[0, mask.astype(np.int8), 0])
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+    runs = list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+    merged: list[tuple[int, int]] = []
+    for start, stop in runs:
+        if merged and start - merged[-1][1] <= merge_gap:
+            merged[-1] = (merged[-1][0], stop)
+        else:
+            merged.append((start, stop))
+    return merged
 
 
 def analyse_open_loop(
@@ -162,7 +174,7 @@ def analyse_open_loop(
         peaks[name] = float(sign * np.max(sign * w_deg[sel])) if sel.any() else float("nan")
     dt = float(np.median(np.diff(t)))
     zones: dict[str, list[float]] = {"R": [], "L": []}
-    for start, stop in _runs(np.abs(omega) <= REST_RATE):
+    for start, stop in _runs(np.abs(omega) <= REST_RATE, int(round(MERGE_GAP_S / dt))):
         if start == 0 or stop == len(t):
             continue
         zones["R" if angle[start] > 0 else "L"].append(float((stop - start) * dt * 1e3))
