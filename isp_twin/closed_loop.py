@@ -1,0 +1,255 @@
+"""Run a closed-loop scenario on the twin: the product's main job.
+
+Per 1 ms sample k (the paper's T, zero-order hold on every command):
+
+1. read the sensors of the twin's state at t_k: the inner gyros (through the
+   `Gyro` model: lag, noise, sampling, counts) and the resolvers;
+2. the inner rate loops (PI + notch + NFC + bound) give the inner commands,
+   the outer followers the outer commands (the inner resolver angle is the
+   follow error);
+3. record the signals at t_k, then step the twin to t_{k+1} with the
+   turntable driven to its target angle at t_{k+1}.
+
+The controllers see sensor readings only, never the true state.
+
+Signals of the `RunResult` (SI, shape (N,)): per inner axis
+``omega_carrier`` (omega of Eq. 10), ``omega_inertial`` (true omega_1),
+``omega_relative`` (omega_2), ``gyro`` (the reading, rad/s), ``command``
+[digits], ``friction`` [N·m], ``nfc`` [digits], ``regime``; per outer axis
+``follow_error`` [rad] (the inner gimbal's angle) and ``command`` [digits].
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from isp_twin.control.bound import Bound
+from isp_twin.control.follower import OuterFollower
+from isp_twin.control.gyro import Gyro
+from isp_twin.control.nfc import FrictionFeedForward
+from isp_twin.control.notch import NotchFilter
+from isp_twin.control.pi import PIController
+from isp_twin.control.rate_loop import InnerRateLoop
+from isp_twin.control.resolver import Resolver
+from isp_twin.errors import ScenarioError, SimulationDiverged
+from isp_twin.metrics import run_metrics
+from isp_twin.parameters import ParameterSet, load_parameters
+from isp_twin.results import RunResult
+from isp_twin.scenario import INNER_AXES, OUTER_AXES, TABLE_AXES, Motion, Scenario
+from isp_twin.units import DEG
+
+__all__ = ["DIVERGED_RATE", "table_angles", "build_rate_loop", "run_scenario"]
+
+#: An inner inertial rate above this is a runaway [rad/s]: the carrier moves at
+#: a few deg/s and the inner gimbals have +-4 deg of travel, so 60 deg/s means
+#: the loop is unstable (absurd gains), not isolating.
+DIVERGED_RATE = 60.0 * DEG
+
+#: Progress is reported every this many samples.
+PROGRESS_EVERY = 500
+
+
+def table_angles(motion: Motion, t: np.ndarray) -> np.ndarray:
+    """Turntable angle [rad] of one axis at times `t`: the integral from 0 of its rate."""
+    amp = motion.rate_amplitude
+    if amp == 0.0:
+        return np.zeros_like(t)
+    w = 2 * math.pi * motion.freq_hz
+    phase = math.radians(motion.phase_deg)
+    if motion.waveform == "sine":
+        return amp / w * (math.cos(phase) - np.cos(w * t + phase))
+    return amp / w * (np.sin(w * t + phase) - math.sin(phase))
+
+
+def build_rate_loop(scenario: Scenario, axis: str, nfc_params: ParameterSet,
+                    dt: float) -> InnerRateLoop:
+    """The inner rate loop of `axis` as the scenario configures it."""
+    cfg = scenario.controller.axis(axis)
+    gains = cfg.gains
+    notch = (
+        NotchFilter(cfg.notch.freq_hz, cfg.notch.q, cfg.notch.depth, dt)
+        if cfg.notch.enabled else None
+    )
+    nfc = (
+        FrictionFeedForward(
+            nfc_params.axis(axis).rate_params(),
+            gamma=cfg.nfc.gamma,
+            taps=cfg.nfc.taps,
+            rest_rate=cfg.nfc.rest_rate_deg_s * DEG,
+        )
+        if cfg.nfc.enabled else None
+    )
+    return InnerRateLoop(
+        PIController(gains.kp_digit_per_count, gains.ki_digit_per_count, cfg.bound_digits),
+        Bound(cfg.bound_digits),
+        notch,
+        nfc,
+    )
+
+
+def run_scenario(
+    scenario: Scenario,
+    params: ParameterSet | None = None,
+    seed: int | None = None,
+    on_progress: Callable[[float], None] | None = None,
+    nfc_params: ParameterSet | None = None,
+) -> RunResult:
+    """Simulate a closed-loop scenario on the MuJoCo twin.
+
+    Args:
+        scenario: a ``kind: closed_loop`` scenario.
+        params: the twin's parameter set (default: the scenario's file).
+        seed: noise seed (default: the scenario's).
+        on_progress: called with the fraction done (0..1) every 0.5 s of
+            simulated time.
+        nfc_params: the model the NFC compensates with (default: `params`,
+            i.e. a perfectly identified plant).
+
+    Returns:
+        The `RunResult` with metrics (see `isp_twin.metrics`); on Ctrl-C the
+        partial result with ``interrupted=True``.
+
+    Raises:
+        ScenarioError: the scenario is not a closed-loop one.
+        SimulationDiverged: the loop ran away (names the time and signal).
+    """
+    from isp_twin.twin import Twin  # mujoco only where the twin lives
+
+    if scenario.kind != "closed_loop":
+        raise ScenarioError(
+            f"{scenario.source or scenario.name}: kind: '{scenario.kind}' cannot be run "
+            "closed loop (expected 'closed_loop')"
+        )
+    if params is None:
+        params_path = scenario.parameters_path
+        params = load_parameters(params_path)
+    else:
+        params_path = params.path
+    nfc_params = nfc_params or params
+    seed = scenario.seed if seed is None else int(seed)
+
+    twin = Twin(params)
+    dt = twin.dt
+    n = int(round(scenario.duration_s / dt)) + 1
+    t = np.arange(n) * dt
+    motions = scenario.turntable.motions()
+    # Targets for t_1 .. t_n: step k drives the table to its angle at t_{k+1}.
+    targets = np.stack([table_angles(motions[a], t + dt) for a in TABLE_AXES], axis=1)
+    targets_list = targets.tolist()
+
+    gyro_rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2)]
+    g = scenario.gyro
+    gyros = [
+        Gyro(g.scale_count_per_deg_s, g.noise_deg_s, g.bandwidth_hz, g.sample_every, dt, rng)
+        for rng in gyro_rngs
+    ]
+    r = scenario.resolver
+    resolvers = [Resolver(r.resolution_deg, r.rate_window, dt) for _ in range(4)]
+    loops = [build_rate_loop(scenario, a, nfc_params, dt) for a in INNER_AXES]
+    f = scenario.follower
+    followers = [
+        OuterFollower(f.kp_digit_per_deg / DEG, f.ki_digit_per_deg / DEG,
+                      f.kd_digit_per_deg_s / DEG, f.bound_digits)
+        for _ in OUTER_AXES
+    ]
+    follow = f.enabled
+    centers = [f.inner_az_center_deg * DEG, f.inner_el_center_deg * DEG]
+
+    twin.reset()
+    names_inner = ("omega_carrier", "omega_inertial", "omega_relative", "gyro", "command",
+                   "friction", "nfc", "regime")
+    rec = {f"{a}/{s}": np.zeros(n) for a in INNER_AXES for s in names_inner}
+    for a in OUTER_AXES:
+        rec[f"{a}/follow_error"] = np.zeros(n)
+        rec[f"{a}/command"] = np.zeros(n)
+    joints = {j: np.zeros(n) for j in TABLE_AXES + INNER_AXES + OUTER_AXES}
+    cols = {key: rec[key] for key in rec}
+    # Gimbal index in the twin's (4,) arrays: inner_az, inner_el, outer_az, outer_el.
+    gyro_to_rate = [gy.to_rate for gy in gyros]
+    command = [0.0, 0.0, 0.0, 0.0]
+    interrupted = False
+    done = 0
+    try:
+        for k in range(n):
+            s = twin.state()
+            angle = s.angle.tolist()
+            rate = s.rate.tolist()
+            w1 = s.gyro.tolist()
+            wc = s.carrier_rate.tolist()
+            friction = s.friction.tolist()
+            regime = s.regime.tolist()
+            meas = [res.read(angle[i]) for i, res in enumerate(resolvers)]
+            for i in range(2):
+                if not -DIVERGED_RATE < w1[i] < DIVERGED_RATE:
+                    raise SimulationDiverged(
+                        f"closed loop diverged at t={t[k]:.3f} s: {INNER_AXES[i]}/omega_inertial "
+                        f"= {w1[i] / DEG:.1f} deg/s (limit {DIVERGED_RATE / DEG:.0f} deg/s; "
+                        "check the controller gains)"
+                    )
+                counts = gyros[i].read(w1[i])
+                u, _, u_nfc = loops[i].step(counts, meas[i][0], meas[i][1])
+                if u != u:
+                    raise SimulationDiverged(
+                        f"closed loop diverged at t={t[k]:.3f} s: {INNER_AXES[i]}/command is NaN"
+                    )
+                command[i] = u
+                a = INNER_AXES[i]
+                cols[f"{a}/omega_carrier"][k] = wc[i]
+                cols[f"{a}/omega_inertial"][k] = w1[i]
+                cols[f"{a}/omega_relative"][k] = rate[i]
+                cols[f"{a}/gyro"][k] = gyro_to_rate[i](counts)
+                cols[f"{a}/command"][k] = u
+                cols[f"{a}/friction"][k] = friction[i]
+                cols[f"{a}/nfc"][k] = u_nfc
+                cols[f"{a}/regime"][k] = regime[i]
+            for j in range(2):
+                # outer_az follows inner_az, outer_el follows inner_el
+                # Follower off: the outer gimbal holds its own zero instead.
+                err = meas[j][0] - centers[j] if follow else -meas[2 + j][0]
+                uo = followers[j].step(err, meas[2 + j][1])
+                command[2 + j] = uo
+                cols[f"{OUTER_AXES[j]}/follow_error"][k] = angle[j]
+                cols[f"{OUTER_AXES[j]}/command"][k] = uo
+            for name, value in zip(TABLE_AXES, s.table_angle.tolist()):
+                joints[name][k] = value
+            for idx, name in enumerate(("inner_az", "inner_el", "outer_az", "outer_el")):
+                joints[name][k] = angle[idx]
+            done = k + 1
+            if k + 1 < n:
+                twin.step(command, targets_list[k])
+            if on_progress is not None and k % PROGRESS_EVERY == 0:
+                on_progress(k / (n - 1))
+    except KeyboardInterrupt:
+        interrupted = True
+    if on_progress is not None and not interrupted:
+        on_progress(1.0)
+
+    t = t[:done]
+    signals = {key: v[:done] for key, v in rec.items()}
+    joint_angles = {key: v[:done] for key, v in joints.items()}
+    metrics = run_metrics(t, signals, scenario.skip_s)
+    return RunResult(
+        scenario=scenario.name,
+        scenario_text=scenario.text,
+        parameters_file=str(params_path) if params_path is not None else params.name,
+        parameters_text=_read_text(params_path),
+        seed=seed,
+        t=t,
+        signals=signals,
+        joint_angles=joint_angles,
+        metrics=metrics,
+        interrupted=interrupted,
+    )
+
+
+def _read_text(path: Path | None) -> str:
+    if path is None:
+        return ""
+    try:
+        return Path(path).read_text()
+    except OSError:
+        return ""
