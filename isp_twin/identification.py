@@ -429,18 +429,27 @@ def identify(
         status = f"differential evolution, {len(history)} generations"
     rest = s.rest_rate_deg_s
 
-    def resid(xf: np.ndarray) -> np.ndarray:
-        nonlocal evaluations
-        evaluations += 1
-        return residuals(full(xf), data, s.side, rest)[0]
+    # The batch costs about as much per time step for 21 sets as for one, so
+    # each residual evaluation also simulates the finite-difference points and
+    # caches the Jacobian; least_squares asks for it at the same x next.
+    cache: dict[str, np.ndarray] = {}
 
-    def jac(xf: np.ndarray) -> np.ndarray:
+    def evaluate(xf: np.ndarray) -> None:
         nonlocal evaluations
         h = 1e-6 * np.maximum(np.abs(xf), 1e-9)
         pts = np.vstack([xf, xf + np.diag(h)])
         evaluations += pts.shape[0]
         e = residuals(full(pts), data, s.side, rest)
-        return ((e[1:] - e[0]) / h[:, None]).T
+        cache.update(x=xf.copy(), e=e[0], j=((e[1:] - e[0]) / h[:, None]).T)
+
+    def resid(xf: np.ndarray) -> np.ndarray:
+        evaluate(xf)
+        return cache["e"]
+
+    def jac(xf: np.ndarray) -> np.ndarray:
+        if "x" not in cache or not np.array_equal(cache["x"], xf):
+            evaluate(xf)
+        return cache["j"]
 
     lb = np.where(np.arange(x0.size) % 5 == 0, 1e-6, 1e-12)
     ub = np.where(np.arange(x0.size) % 5 == 0, 1 - 1e-9, np.inf)
@@ -461,8 +470,8 @@ def identify(
         if progress is not None:
             progress("refine", ls.nfev, history[-1])
         status += f"; least-squares refinement ({ls.nfev} evaluations, {ls.message.rstrip('.')})"
-    e = resid(x_best)
-    j = jac(x_best)
+    evaluate(x_best)
+    e, j = cache["e"], cache["j"]
     breaks = list(np.cumsum([0] + [len(d) - 1 for d in data]))
     scale = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
     ci_f, ci_floor_f, rho = _confidence(j, e, breaks, s.confidence, _REFERENCE_NOISE * scale)
