@@ -19,15 +19,23 @@ Discrete stick-slip, the decisions Eq. 6 leaves open:
   selects the half-plane.
 * Optional hard stops (the inner gimbals' ±4 deg): reaching one stops the axis,
   as the joint limit does in the twin.
+* Extra effects (`isp_twin.effects`), applied per sample as in the twin: the
+  command passes through each ``command`` hook, the ``acceleration`` hooks
+  (at the angle that selects the half-plane and the rate of the previous
+  sample) add ``accel*T`` to the drive, and the rate is reported through the
+  ``measure`` hooks (gyro errors, structural modes).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from isp_twin.friction import regime_index, stribeck_magnitude
+from isp_twin.effects import Effect
+
+from isp_twin.friction import stribeck_magnitude
 from isp_twin.parameters import RateParams
 
 __all__ = ["AxisResponse", "simulate", "steady_rate"]
@@ -41,11 +49,14 @@ class AxisResponse:
         omega: relative rate [rad/s], shape (P, N) (or (N,) for one set).
         angle: angle [rad], same shape.
         regime: regime index used for the step into each sample, same shape.
+        omega_true: the axis's own rate [rad/s] when measurement effects make
+            ``omega`` (what the gyro reads) differ from it; else None.
     """
 
     omega: np.ndarray
     angle: np.ndarray
     regime: np.ndarray
+    omega_true: np.ndarray | None = None
 
 
 def simulate(
@@ -57,20 +68,27 @@ def simulate(
     angle_measured: np.ndarray | None = None,
     angle_limit: float | None = None,
     extra_rate: np.ndarray | None = None,
+    effects: Sequence[Effect] = (),
 ) -> AxisResponse:
     """Simulate Eq. 6 for a batch of parameter sets.
 
     Args:
         params: rate-form parameters, arrays (4,) or (P, 4).
-        u: command [digits], shape (N,).
+        u: command [digits], shape (N,), or (P, N): one command per set
+            (several runs simulated side by side as rows of one batch).
         dt: sample period T [s].
-        omega0: rate at sample 0 [rad/s] (sample 0 is given, not simulated).
-        angle0: angle at sample 0 [rad].
-        angle_measured: if given, shape (N,), the measured angle [rad] used to
-            pick the half-plane (teacher forcing), instead of the simulated one.
+        omega0: rate at sample 0 [rad/s] (sample 0 is given, not simulated);
+            a float or shape (P,).
+        angle0: angle at sample 0 [rad]; a float or shape (P,).
+        angle_measured: if given, shape (N,) or (P, N), the measured angle
+            [rad] used to pick the half-plane (teacher forcing), instead of
+            the simulated one.
         angle_limit: symmetric hard stop [rad]; None for none.
         extra_rate: an additional drive in rate form [rad/s per sample], shape
             (N,) or (P, N), added to b*Ke*u (extra effects enter here).
+        effects: extra effects (reset here, then stepped); their parameters
+            are floats or arrays of shape (P,) matching the batch
+            (`isp_twin.effects.batched.make_batched`).
 
     Returns:
         `AxisResponse`; shapes (N,) for unbatched params, else (P, N).
@@ -80,39 +98,74 @@ def simulate(
         np.atleast_2d(np.asarray(x, dtype=float))
         for x in (params.pole, params.gain, params.static, params.coulomb, params.alpha)
     )
+    u = np.asarray(u, dtype=float)
+    per_row_u = u.ndim == 2
+    if per_row_u:
+        single = False
     n_sets = max(p.shape[0] for p in (pole, gain, static, coulomb, alpha))
+    n_sets = max(n_sets, u.shape[0] if per_row_u else 1, np.size(omega0), np.size(angle0))
     pole, gain, static, coulomb, alpha = (
         np.broadcast_to(p, (n_sets, 4)) for p in (pole, gain, static, coulomb, alpha)
     )
-    u = np.asarray(u, dtype=float)
+    if per_row_u:
+        u = np.broadcast_to(u, (n_sets, u.shape[1])).T  # (N, P): one row per step
     n = u.shape[0]
+    if angle_measured is not None:
+        angle_measured = np.asarray(angle_measured, dtype=float)
+        if angle_measured.ndim == 2:
+            angle_measured = np.broadcast_to(angle_measured, (n_sets, n)).T
     rows = np.arange(n_sets)
-    omega = np.empty((n_sets, n))
-    angle = np.empty((n_sets, n))
-    regime = np.zeros((n_sets, n), dtype=np.intp)
-    w = np.full(n_sets, float(omega0))
-    y = np.full(n_sets, float(angle0))
-    omega[:, 0] = w
-    angle[:, 0] = y
+    w = np.broadcast_to(np.asarray(omega0, dtype=float), (n_sets,)).copy()
+    y = np.broadcast_to(np.asarray(angle0, dtype=float), (n_sets,)).copy()
+    # Time-major buffers: each step writes one contiguous row.
+    omega_t = np.empty((n, n_sets))
+    angle_t = np.empty((n, n_sets))
+    regime_t = np.zeros((n, n_sets), dtype=np.intp)
+    omega_t[0] = w
+    angle_t[0] = y
     extra = None if extra_rate is None else np.broadcast_to(extra_rate, (n_sets, n))
+    commands = [e for e in effects if type(e).command is not Effect.command]
+    torques = [e for e in effects if type(e).acceleration is not Effect.acceleration]
+    sensors = [e for e in effects if type(e).measure is not Effect.measure]
+    for e in effects:
+        e.reset()
+    measured = None
+    if sensors:
+        measured = np.empty((n, n_sets))
+        m = w
+        for e in sensors:
+            m = e.measure(m)
+        measured[0] = m
+    # One gather per step: row*4 + regime indexes the (P*4, 5) table.
+    table = np.stack([pole, gain, static, coulomb, alpha], axis=-1).reshape(n_sets * 4, 5)
+    gain_flat = table[:, 1]
+    base = rows * 4
     for k in range(1, n):
         side_angle = y if angle_measured is None else angle_measured[k - 1]
+        uk = u[k - 1]
+        for e in commands:
+            uk = e.command(uk)
+        more = None if extra is None else extra[:, k - 1]
+        if torques:
+            acc = sum(e.acceleration(side_angle, w) for e in torques) * dt
+            more = acc if more is None else more + acc
+        # Regime index as `regime_index`: 2*(angle <= 0) + (direction < 0).
+        side = base + 2 * (side_angle <= 0.0)
+        moving = w != 0.0
         # At rest the drive's sign picks the direction; gains are positive, so
         # the + regime of the current side decides it (exact without extra_rate).
-        side = regime_index(side_angle, 1.0)
-        probe = gain[rows, side] * u[k - 1]
-        if extra is not None:
-            probe = probe + extra[:, k - 1]
-        r = regime_index(side_angle, np.where(w != 0.0, w, probe))
-        a = pole[rows, r]
-        drive = gain[rows, r] * u[k - 1]
-        if extra is not None:
-            drive = drive + extra[:, k - 1]
-        ts = static[rows, r]
-        moving = w != 0.0
-        slide = np.sign(w) * stribeck_magnitude(np.abs(w), ts, coulomb[rows, r], alpha[rows, r])
+        probe = gain_flat[side] * uk
+        if more is not None:
+            probe = probe + more
+        idx = side + np.where(moving, w < 0.0, probe < 0.0)
+        a, g, ts, tc, al = table[idx].T
+        drive = g * uk
+        if more is not None:
+            drive = drive + more
+        slide = np.sign(w) * stribeck_magnitude(np.abs(w), ts, tc, al)
         w_move = a * w + drive - slide
-        w_move = np.where(np.sign(w_move) == np.sign(w), w_move, 0.0)
+        # Friction cannot reverse the motion: a sign change ends at rest.
+        w_move = np.where(w_move * w > 0.0, w_move, 0.0)
         w_rest = np.where(np.abs(drive) > ts, drive - np.sign(drive) * ts, 0.0)
         w = np.where(moving, w_move, w_rest)
         y = y + dt * w
@@ -121,12 +174,23 @@ def simulate(
             # At the stop only a motion away from it survives.
             w = np.where(hit & (np.sign(w) == np.sign(y)), 0.0, w)
             y = np.clip(y, -angle_limit, angle_limit)
-        omega[:, k] = w
-        angle[:, k] = y
-        regime[:, k] = r
+        omega_t[k] = w
+        angle_t[k] = y
+        regime_t[k] = idx - base
+        if sensors:
+            m = w
+            for e in sensors:
+                m = e.measure(m)
+            measured[k] = m
+    omega, angle, regime = omega_t.T, angle_t.T, regime_t.T
+    if measured is not None:
+        measured = measured.T
+    true = None
+    if measured is not None:
+        omega, true = measured, omega
     if single:
-        return AxisResponse(omega[0], angle[0], regime[0])
-    return AxisResponse(omega, angle, regime)
+        return AxisResponse(omega[0], angle[0], regime[0], None if true is None else true[0])
+    return AxisResponse(omega, angle, regime, true)
 
 
 def steady_rate(params: RateParams, u: float, regime: int) -> float:

@@ -81,3 +81,12 @@ def make_effect(spec: EffectSpec, dt: float = 1e-3) -> Effect:
 
 # Each module registers its effect on import.
 from isp_twin.effects import torque_offset  # noqa: E402,F401
+from isp_twin.effects import cable_spring  # noqa: E402,F401
+from isp_twin.effects import cogging  # noqa: E402,F401
+from isp_twin.effects import deadzone  # noqa: E402,F401
+from isp_twin.effects import input_delay  # noqa: E402,F401
+from isp_twin.effects import lugre  # noqa: E402,F401
+from isp_twin.effects import resonance  # noqa: E402,F401
+from isp_twin.effects import saturation  # noqa: E402,F401
+from isp_twin.effects import sensor_bias  # noqa: E402,F401
+from isp_twin.effects import unbalance  # noqa: E402,F401

@@ -2,15 +2,37 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from isp_twin.effects import Effect, register
 
 
 @register
 class TorqueOffset(Effect):
-    """A constant torque on the axis (unbalance at fixed attitude, amplifier offset)."""
+    """A constant torque on the axis: ``accel = accel_rad_s2`` (torque / J).
+
+    Parameters: ``accel_rad_s2`` [rad/s^2].
+    """
 
     name = "torque_offset"
     param_names = ("accel_rad_s2",)
+    #: Plausible range of each parameter (fit bounds) [SI].
+    #: Parameters that make the effect do nothing.
+    null = {"accel_rad_s2": 0.0}
+    bounds = {"accel_rad_s2": (-200.0, 200.0)}
+    #: Exactly equivalent to shifting Ts and Tc of the + regimes down and of
+    #: the - regimes up (Eq. 5 has them per direction): rate data cannot tell
+    #: it from friction, so it keeps the value the current model's residual
+    #: shows and the refit is of the friction around it (the diagnosis then
+    #: finds no gain over the plain refit; see docs/diagnosis.md).
+    frozen = ("accel_rad_s2",)
 
-    def acceleration(self, angle: float, rate: float) -> float:
-        return self.params["accel_rad_s2"]
+    def acceleration(self, angle, rate):
+        return self.params["accel_rad_s2"] + 0.0 * np.asarray(angle)
+
+    @classmethod
+    def guesses(cls, ctx) -> list[dict[str, float]]:
+        """Start values from the residual: the mean torque it implies."""
+        moving = ctx.moving
+        acc = float(np.mean(ctx.accel[moving])) if moving.any() else 0.0
+        return [{"accel_rad_s2": acc}]

@@ -1,0 +1,268 @@
+"""Re-identification of the axis model with one candidate effect added.
+
+A candidate's free parameters are the 20 rate-form parameters of Eq. 6
+(refined locally from the current ones) plus the effect's own (minus the
+ones it declares `frozen`). Start values of the effect come from its
+`guesses(context)`: all guesses are simulated in one batch and the best
+starts a bounded Levenberg-Marquardt (`fit.levenberg_marquardt`); periodic
+and discrete things (cogging period, delay, dead-zone width, resonance
+frequency) are thereby searched globally on a grid first.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from isp_twin.diagnosis.fit import FitResult, FitStatus, lm_steps, solve_many
+from isp_twin.diagnosis.residual import ResidualContext, residual_context
+from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
+from isp_twin.effects import EFFECTS
+from isp_twin.errors import ParameterError, nearest
+from isp_twin.parameters import EffectSpec
+
+__all__ = [
+    "BASELINE",
+    "CandidateFit",
+    "fit_candidate",
+    "fit_candidates",
+    "holdout_residual",
+    "holdout_residuals",
+    "rate_bounds",
+]
+
+#: Name of the model without a new effect.
+BASELINE = "none"
+
+
+@dataclass(frozen=True)
+class CandidateFit:
+    """The model refitted with one candidate effect (or none).
+
+    Attributes:
+        name: effect name, or `BASELINE`.
+        params: fitted effect parameters (SI, unit in the name).
+        ci95: their 95 % confidence half-widths (NaN for frozen ones).
+        rate_vector: refitted rate-form parameters, (20,) (`RateParams.to_vector`).
+        rate_ci95: their half-widths, (20,).
+        sse: training sum of squared residuals [(rad/s)^2].
+        n_samples: training samples M.
+        n_params: free parameters k.
+        bic: ``M*ln(sse/M) + k*ln(M)``.
+        status: optimizer status.
+        fixed: effects already in the model (not refitted).
+    """
+
+    name: str
+    params: Mapping[str, float]
+    ci95: Mapping[str, float]
+    rate_vector: np.ndarray
+    rate_ci95: np.ndarray
+    sse: float
+    n_samples: int
+    n_params: int
+    bic: float
+    status: FitStatus
+    fixed: tuple[EffectSpec, ...] = ()
+
+    @property
+    def rmse(self) -> float:
+        return float(np.sqrt(self.sse / self.n_samples))
+
+    def effects(self) -> tuple[EffectSpec, ...]:
+        """All effects of this model: the fixed ones plus the candidate."""
+        if self.name == BASELINE:
+            return self.fixed
+        return self.fixed + (EffectSpec(self.name, dict(self.params)),)
+
+
+def rate_bounds(x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bounds and scales of the 20 rate-form parameters around a start (all positive)."""
+    x0 = np.asarray(x0, float).reshape(4, 5)
+    lower = np.tile([0.05, 1e-12, 1e-12, 1e-12, 1e-9], (4, 1))
+    upper = np.maximum(np.tile([0.9999, np.inf, np.inf, np.inf, np.inf], (4, 1)), 0)
+    upper[:, 1:] = np.maximum(x0[:, 1:] * 100.0, 1e-6)
+    scale = np.maximum(np.abs(x0), 1e-9)
+    scale[:, 0] = np.maximum(1.0 - x0[:, 0], 1e-3)  # the pole matters through 1 - a
+    return lower.ravel(), upper.ravel(), scale.ravel()
+
+
+def _effect_class(name: str):
+    try:
+        return EFFECTS[name]
+    except KeyError:
+        raise ParameterError(
+            f"unknown candidate effect '{name}'{nearest(name, EFFECTS)}; known: {', '.join(sorted(EFFECTS))}"
+        ) from None
+
+
+def _effect_scale(name: str, lo: float, hi: float, guess: float) -> float:
+    if name.endswith("phase_rad"):
+        return max(abs(guess), 0.5)
+    return max(abs(guess), 1e-3 * (hi - lo) if np.isfinite(hi - lo) else 1.0, 1e-9)
+
+
+def fit_candidate(
+    stack: RunStack,
+    rate_vector: np.ndarray,
+    name: str,
+    fixed: Sequence[EffectSpec] = (),
+    context: ResidualContext | None = None,
+    start: Mapping[str, float] | None = None,
+    max_iter: int = 8,
+) -> CandidateFit:
+    """Refit the model with effect `name` (or `BASELINE`); see `fit_candidates`."""
+    starts = None if start is None else {name: start}
+    return fit_candidates(stack, rate_vector, [name], fixed, context, starts, max_iter)[name]
+
+
+def fit_candidates(
+    stack: RunStack,
+    rate_vector: np.ndarray,
+    names: Sequence[str],
+    fixed: Sequence[EffectSpec] = (),
+    context: ResidualContext | None = None,
+    starts: Mapping[str, Mapping[str, float] | None] | None = None,
+    max_iter: int = 8,
+    rate_starts: Mapping[str, np.ndarray] | None = None,
+) -> dict[str, CandidateFit]:
+    """Refit the model once per candidate, all candidates in lockstep.
+
+    Args:
+        stack: training runs.
+        rate_vector: current rate-form parameters, (20,); every fit starts here.
+        names: candidate effect names, `BASELINE` for the refit without one.
+        fixed: effects already accepted (kept as they are).
+        context: residual of the current model (for the effects' guesses);
+            computed here when needed and None.
+        starts: name -> effect start values instead of the guesses (warm start).
+        max_iter: Levenberg-Marquardt iterations.
+        rate_starts: name -> its own start of the rate parameters (warm start).
+
+    Returns:
+        name -> `CandidateFit`.
+    """
+    x_rate = np.asarray(rate_vector, float)
+    lo_r, hi_r, sc_r = rate_bounds(x_rate)
+    fixed = tuple(fixed)
+    starts = dict(starts or {})
+    classes = {n: _effect_class(n) for n in names if n != BASELINE}
+    need = [n for n in classes if starts.get(n) is None]
+    if need:
+        if context is None:
+            resp = predict(stack, x_rate[None], (), fixed)
+            one = type(resp)(*(None if a is None else a[0] for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)))
+            context = residual_context(stack, one, x_rate.reshape(4, 5)[:, 0])
+        # Global step: every guess of every candidate in one batch.
+        guesses = {}
+        for n in need:
+            cls = classes[n]
+            gs = cls.guesses(context)
+            for g in gs:
+                for p in cls.param_names:
+                    g[p] = float(np.clip(g[p], *cls.bounds[p]))
+            guesses[n] = gs
+        reqs = [
+            (np.tile(x_rate, (len(guesses[n]), 1)), n, {p: np.array([g[p] for g in guesses[n]]) for p in classes[n].param_names})
+            for n in need
+        ]
+        for n, res in zip(need, residuals_many(stack, reqs, fixed)):
+            starts[n] = guesses[n][int(np.argmin(np.einsum("ij,ij->i", res, res)))]
+
+    layouts, problems = [], []
+    for n in names:
+        if n == BASELINE:
+            free, frozen, start = [], [], {}
+        else:
+            cls = classes[n]
+            frozen = list(getattr(cls, "frozen", ()))
+            free = [p for p in cls.param_names if p not in frozen]
+            start = dict(starts[n])
+        lo_e = np.array([classes[n].bounds[p][0] for p in free]) if free else np.zeros(0)
+        hi_e = np.array([classes[n].bounds[p][1] for p in free]) if free else np.zeros(0)
+        x_e = np.array([start[p] for p in free]) if free else np.zeros(0)
+        sc_e = np.array([_effect_scale(p, lo, hi, g) for p, lo, hi, g in zip(free, lo_e, hi_e, x_e)])
+        layouts.append((n, free, frozen, start))
+        x_n = np.asarray((rate_starts or {}).get(n, x_rate), float)
+        lo_r, hi_r, sc_r = rate_bounds(x_n)
+        problems.append(
+            lm_steps(
+                np.concatenate([x_n, x_e]),
+                np.concatenate([lo_r, lo_e]),
+                np.concatenate([hi_r, hi_e]),
+                np.concatenate([sc_r, sc_e]),
+                max_iter=max_iter,
+            )
+        )
+
+    def evaluate(reqs):
+        batch = []
+        for i, x in reqs:
+            n, free, frozen, start = layouts[i]
+            if n == BASELINE:
+                batch.append((x[:, :20], None, {}))
+                continue
+            eff = {p: x[:, 20 + j] for j, p in enumerate(free)}
+            eff.update({p: np.full(x.shape[0], start[p]) for p in frozen})
+            batch.append((x[:, :20], n, eff))
+        return residuals_many(stack, batch, fixed)
+
+    out = {}
+    for (n, free, frozen, start), fit in zip(layouts, solve_many(problems, evaluate)):
+        if n == BASELINE:
+            out[n] = _result(n, fit, {}, {}, (), stack, fixed)
+            continue
+        cls = classes[n]
+        values = {p: float(fit.x[20 + j]) for j, p in enumerate(free)}
+        values.update({p: float(start[p]) for p in frozen})
+        ci = {p: float(fit.ci95[20 + j]) for j, p in enumerate(free)}
+        ci.update({p: float("nan") for p in frozen})
+        out[n] = _result(
+            n, fit, {p: values[p] for p in cls.param_names}, {p: ci[p] for p in cls.param_names}, free, stack, fixed
+        )
+    return out
+
+
+def _result(name, fit: FitResult, params, ci, free, stack: RunStack, fixed) -> CandidateFit:
+    m = stack.n_samples
+    k = 20 + len(free)
+    sse = max(fit.sse, 1e-300)
+    return CandidateFit(
+        name=name,
+        params=params,
+        ci95=ci,
+        rate_vector=fit.x[:20].copy(),
+        rate_ci95=fit.ci95[:20].copy(),
+        sse=float(fit.sse),
+        n_samples=m,
+        n_params=k,
+        bic=float(m * np.log(sse / m) + k * np.log(m)),
+        status=fit.status,
+        fixed=tuple(fixed),
+    )
+
+
+def holdout_residuals(stack: RunStack, fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
+    """`holdout_residual` of several fits (same fixed effects) in one time loop."""
+    reqs = [
+        (f.rate_vector[None], None if f.name == BASELINE else f.name, {k: np.array([v]) for k, v in f.params.items()})
+        for f in fits
+    ]
+    out = []
+    for res in residuals_many(stack, reqs, fits[0].fixed if fits else ()):
+        full = np.zeros(stack.mask.shape)
+        full[stack.mask] = res[0]
+        out.append([full[i, stack.mask[i]] for i in range(full.shape[0])])
+    return out
+
+
+def holdout_residual(stack: RunStack, fit: CandidateFit) -> list[np.ndarray]:
+    """Residuals of a fitted model on other runs, one array per run [rad/s]."""
+    effects = []
+    if fit.name != BASELINE:
+        effects = [(fit.name, {k: np.array([v]) for k, v in fit.params.items()})]
+    resp = predict(stack, fit.rate_vector[None], effects, fit.fixed)
+    res = stack.omega - resp.omega[0]
+    return [res[i, stack.mask[i]] for i in range(res.shape[0])]

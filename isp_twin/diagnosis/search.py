@@ -1,0 +1,338 @@
+"""The diagnosis loop: residual, candidates, the acceptance rule, look again.
+
+Round by round: refit the current model without a new effect (the baseline)
+and with each candidate of the library, compare them on held-out data (the
+given held-out runs, or leave-one-run-out cross-validation over the training
+runs), accept the best significant one (`selection`), add it to the model and
+look again; stop when nothing significant is left or after `max_rounds`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from isp_twin.diagnosis.candidates import (
+    BASELINE,
+    CandidateFit,
+    fit_candidates,
+    holdout_residual,
+    holdout_residuals,
+)
+from isp_twin.diagnosis.residual import ResidualAnalysis, analyse, noise_floor, residual_context
+from isp_twin.diagnosis.selection import Verdict, judge, select
+from isp_twin.diagnosis.simulation import RunStack, predict, stack_runs
+from isp_twin.effects import EFFECTS
+from isp_twin.errors import DataError, ParameterError, nearest
+from isp_twin.measured import MeasuredData
+from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
+
+__all__ = ["LIBRARY", "RoundResult", "Diagnosis", "diagnose", "split_in_time"]
+
+#: The candidate effects, in report order.
+LIBRARY: tuple[str, ...] = (
+    "cogging",
+    "cable_spring",
+    "unbalance",
+    "torque_offset",
+    "input_delay",
+    "deadzone",
+    "saturation",
+    "sensor_bias",
+    "lugre",
+    "resonance",
+)
+
+
+@dataclass(frozen=True)
+class RoundResult:
+    """One round of the loop.
+
+    Attributes:
+        baseline: the current model refitted without a new effect.
+        fits: candidate name -> its refit (trained on all training runs).
+        verdicts: one per candidate, best held-out RMSE first (the ranking).
+        selected: the accepted candidate's name, or `BASELINE`.
+        holdout_before / holdout_after: held-out residuals per run of the
+            baseline and of the selected model [rad/s].
+        noise_floor: noise estimate from the baseline's held-out residual [rad/s].
+    """
+
+    baseline: CandidateFit
+    fits: dict
+    verdicts: tuple[Verdict, ...]
+    selected: str
+    holdout_before: tuple
+    holdout_after: tuple
+    noise_floor: float
+
+    @property
+    def model(self) -> CandidateFit:
+        return self.fits[self.selected] if self.selected != BASELINE else self.baseline
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The whole diagnosis of one axis.
+
+    Attributes:
+        axis: gimbal axis name.
+        rounds: the rounds, in order.
+        rmse_before: held-out RMS error of the given model, unchanged [rad/s].
+        rmse_after: held-out RMS error of the final model [rad/s].
+        noise_floor: noise estimate [rad/s] (first round).
+        params_out: the updated parameter set (effects added, rate parameters
+            re-identified); the input set when nothing was found.
+        analysis_before / analysis_after: residual analyses on the training
+            runs, given model and final model.
+        holdout_names: the held-out runs (or "cross-validation").
+    """
+
+    axis: str
+    rounds: tuple[RoundResult, ...]
+    rmse_before: float
+    rmse_after: float
+    noise_floor: float
+    params_out: ParameterSet
+    analysis_before: ResidualAnalysis
+    analysis_after: ResidualAnalysis
+    residual_before: tuple = ()
+    residual_after: tuple = ()
+    holdout_names: tuple[str, ...] = ()
+    stack: RunStack | None = field(default=None, repr=False)
+
+    @property
+    def accepted(self) -> tuple[CandidateFit, ...]:
+        return tuple(r.model for r in self.rounds if r.selected != BASELINE)
+
+    @property
+    def selected_effect(self) -> str:
+        """The first accepted effect, or ``none``."""
+        acc = self.accepted
+        return acc[0].name if acc else BASELINE
+
+    def to_json(self) -> dict:
+        """The ``--json`` record (see docs/diagnosis.md)."""
+        acc = self.accepted
+        first = self.rounds[0]
+        return {
+            "axis": self.axis,
+            "selected_effect": self.selected_effect,
+            "effect_parameters": dict(acc[0].params) if acc else {},
+            "effect_ci95": dict(acc[0].ci95) if acc else {},
+            "all_selected": [
+                {"name": f.name, "parameters": dict(f.params), "ci95": dict(f.ci95)} for f in acc
+            ],
+            "rmse_before": self.rmse_before,
+            "rmse_baseline_refit": float(_rms(first.holdout_before)),
+            "rmse_after": self.rmse_after,
+            "noise_floor": self.noise_floor,
+            "holdout": list(self.holdout_names),
+            "ranking": [
+                {
+                    "name": v.name,
+                    "holdout_rmse": v.holdout_rmse,
+                    "improvement_z": v.improvement_z,
+                    "delta_bic": v.delta_bic,
+                    "significant": v.significant,
+                    "reason": v.reason,
+                    "parameters": dict(first.fits[v.name].params),
+                }
+                for v in first.verdicts
+            ],
+            "rounds": [
+                {"selected": r.selected, "ranking": [v.name for v in r.verdicts]} for r in self.rounds
+            ],
+            "analysis_before": self.analysis_before.summary(),
+            "analysis_after": self.analysis_after.summary(),
+        }
+
+
+def _rms(parts) -> float:
+    x = np.concatenate([np.asarray(p) for p in parts]) if len(parts) else np.array([np.nan])
+    return float(np.sqrt(np.mean(x**2)))
+
+
+def split_in_time(run) -> tuple[MeasuredData, MeasuredData]:
+    """Two halves of one run (for cross-validation with a single data set)."""
+    n = len(run.u) // 2
+    parts = []
+    for name, sl in ((f"{run.name}[first half]", slice(0, n)), (f"{run.name}[second half]", slice(n, None))):
+        parts.append(
+            MeasuredData(name, run.t[sl], run.u[sl], run.omega[sl], run.angle[sl], getattr(run, "source", None), run.dt)
+        )
+    return parts[0], parts[1]
+
+
+def _cv_residuals(runs, fits: Sequence[CandidateFit], max_iter: int) -> list[list[np.ndarray]]:
+    """Leave-one-run-out residuals of each fit; every fold refits all of them
+    in lockstep, warm-started from their all-run fits."""
+    out: list[list[np.ndarray]] = [[] for _ in fits]
+    for k in range(len(runs)):
+        train = stack_runs([r for i, r in enumerate(runs) if i != k])
+        folds = fit_candidates(
+            train,
+            fits[0].rate_vector,
+            [f.name for f in fits],
+            fits[0].fixed,
+            starts={f.name: dict(f.params) for f in fits if f.name != BASELINE},
+            max_iter=max_iter,
+            rate_starts={f.name: f.rate_vector for f in fits},
+        )
+        held = holdout_residuals(stack_runs([runs[k]]), [folds[f.name] for f in fits])
+        for i, parts in enumerate(held):
+            out[i].extend(parts)
+    return out
+
+
+def diagnose(
+    runs: Sequence,
+    params: ParameterSet,
+    axis: str = "inner_az",
+    holdout: Sequence = (),
+    candidates: Sequence[str] | None = None,
+    max_rounds: int = 2,
+    max_iter: int = 6,
+    cv_iter: int = 2,
+) -> Diagnosis:
+    """Diagnose what the model of one axis misses in measured open-loop runs.
+
+    Args:
+        runs: training runs (`MeasuredData`), same sample period as the
+            parameter set.
+        params: the current parameter set.
+        axis: which axis of the set the runs belong to.
+        holdout: held-out runs; empty for cross-validation over `runs`
+            (a single run is split in two halves).
+        candidates: effect names to test (default: `LIBRARY` minus the
+            effects the axis already has).
+        max_rounds: at most this many effects are added.
+        max_iter: Levenberg-Marquardt iterations per fit.
+        cv_iter: iterations per cross-validation fold (warm-started).
+
+    Raises:
+        DataError: no runs, or a sample period that differs from the set's.
+        ParameterError: unknown axis or candidate.
+    """
+    runs = list(runs)
+    holdout = list(holdout)
+    if not runs:
+        raise DataError("diagnose: no data sets given")
+    ax: AxisParams = params.axis(axis)
+    for r in runs + holdout:
+        if abs(r.dt - params.sample_time_s) > 1e-9 * params.sample_time_s:
+            raise DataError(
+                f"{r.source or r.name}: sample period {r.dt:g} s, but the parameter file "
+                f"{params.path or params.name} is for {params.sample_time_s:g} s"
+            )
+    if candidates is None:
+        present = {e.name for e in ax.effects}
+        candidates = [c for c in LIBRARY if c not in present]
+    for c in candidates:
+        if c not in EFFECTS:
+            raise ParameterError(
+                f"unknown candidate effect '{c}'{nearest(c, EFFECTS)}; known: {', '.join(sorted(EFFECTS))}"
+            )
+    if not holdout and len(runs) == 1:
+        runs = list(split_in_time(runs[0]))
+    train = stack_runs(runs)
+    held = stack_runs(holdout) if holdout else None
+    holdout_names = tuple(r.name for r in holdout) if holdout else ("cross-validation: " + ", ".join(train.names),)
+
+    def held_residuals(fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
+        if held is not None:
+            return holdout_residuals(held, fits)
+        return _cv_residuals(runs, fits, cv_iter)
+
+    x_file = ax.rate_params().to_vector()
+    fixed = tuple(ax.effects)
+    given = CandidateFit(BASELINE, {}, {}, x_file, np.full(20, np.nan), np.nan, 1, 20, np.nan, None, fixed)
+    before_held = holdout_residual(held, given) if held is not None else holdout_residual(train, given)
+    rmse_before = _rms(before_held)
+    analysis_before = analyse(train, _one(predict(train, x_file[None], (), fixed)))
+
+    rounds = []
+    x_current = x_file
+    current: CandidateFit | None = None
+    remaining = list(candidates)
+    for _ in range(max_rounds):
+        resp = _one(predict(train, x_current[None], (), fixed))
+        context = residual_context(train, resp, x_current.reshape(4, 5)[:, 0])
+        names = remaining + ([BASELINE] if current is None else [])
+        fits = fit_candidates(train, x_current, names, fixed, context=context, max_iter=max_iter)
+        base = fits.pop(BASELINE) if current is None else current
+        order = [base] + [fits[n] for n in remaining]
+        held_all = held_residuals(order)
+        base_held = held_all[0]
+        floor = noise_floor(base_held)
+        verdicts = [
+            judge(n, base_held, h, base.bic, fits[n].bic, floor) for n, h in zip(remaining, held_all[1:])
+        ]
+        verdicts.sort(key=lambda v: v.holdout_rmse)
+        best = select(verdicts)
+        selected = best.name if best else BASELINE
+        after_held = held_all[1 + remaining.index(selected)] if best else base_held
+        rounds.append(
+            RoundResult(base, fits, tuple(verdicts), selected, tuple(base_held), tuple(after_held), floor)
+        )
+        if best is None:
+            break
+        current = fits[selected]
+        fixed = current.effects()
+        x_current = current.rate_vector
+        remaining.remove(selected)
+        if not remaining:
+            break
+
+    final = rounds[-1].model if rounds[-1].selected != BASELINE else (current or None)
+    if final is None or final.name == BASELINE and not [r for r in rounds if r.selected != BASELINE]:
+        params_out = params
+        final_x, final_fixed = x_file, tuple(ax.effects)
+        after_held = before_held
+    else:
+        final_x, final_fixed = final.rate_vector, final.effects()
+        params_out = params.with_axis(axis, _updated_axis(ax, final))
+        after_held = rounds[-1].holdout_after if rounds[-1].selected != BASELINE else rounds[-1].holdout_before
+    analysis_after = analyse(train, _one(predict(train, final_x[None], (), final_fixed)))
+    res_before = train.omega - _one(predict(train, x_file[None], (), tuple(ax.effects))).omega
+    res_after = train.omega - _one(predict(train, final_x[None], (), final_fixed)).omega
+    return Diagnosis(
+        axis=axis,
+        rounds=tuple(rounds),
+        rmse_before=rmse_before,
+        rmse_after=_rms(after_held),
+        noise_floor=rounds[0].noise_floor,
+        params_out=params_out,
+        analysis_before=analysis_before,
+        analysis_after=analysis_after,
+        residual_before=tuple(res_before),
+        residual_after=tuple(res_after),
+        holdout_names=holdout_names,
+        stack=train,
+    )
+
+
+def _one(resp):
+    """The first parameter set of a batched (P, R, N) response: (R, N)."""
+    return type(resp)(*(None if a is None else a[0] for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)))
+
+
+def _updated_axis(ax: AxisParams, fit: CandidateFit) -> AxisParams:
+    b = tuple(r.b for r in ax.regimes)
+    regimes = RateParams.from_vector(fit.rate_vector).to_regimes(b)
+    ci = np.where(np.isfinite(fit.rate_ci95), fit.rate_ci95, np.nan)
+    ci_regimes = tuple(
+        replace(r, b=float("nan")) for r in RateParams.from_vector(np.abs(ci)).to_regimes(b)
+    )
+    note = (ax.note + "; " if ax.note else "") + "re-identified by diagnose with " + ", ".join(
+        e.name for e in fit.effects()
+    )
+    return replace(
+        ax,
+        regimes=regimes,
+        ci95=tuple(ci_regimes),
+        effects=tuple(EffectSpec(e.name, dict(e.params)) for e in fit.effects()),
+        note=note,
+    )

@@ -1,0 +1,178 @@
+"""Several measured runs simulated side by side, for a batch of model variants.
+
+The runs become rows of one batched call of `isp_twin.axis_model.simulate`
+(padded to the longest), so P parameter sets on R runs cost one time loop of
+P*R rows: the per-step overhead, not the batch size, sets the price.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from isp_twin.axis_model import simulate
+from isp_twin.effects.batched import make_batched
+from isp_twin.errors import DataError
+from isp_twin.parameters import EffectSpec, RateParams
+
+__all__ = ["WARMUP", "RunStack", "stack_runs", "predict", "residuals", "residuals_many"]
+
+
+@dataclass(frozen=True)
+class RunStack:
+    """Runs padded to a common length. Arrays shape (R, N) unless noted.
+
+    Attributes:
+        names: run names, (R,).
+        u: command [digits or the file's unit].
+        omega: measured rate [rad/s].
+        angle: measured angle [rad].
+        mask: True on samples that count (not sample 0, not padding).
+        dt: sample period [s].
+    """
+
+    names: tuple[str, ...]
+    u: np.ndarray
+    omega: np.ndarray
+    angle: np.ndarray
+    mask: np.ndarray
+    dt: float
+
+    @property
+    def n_samples(self) -> int:
+        """Samples that count, summed over the runs."""
+        return int(self.mask.sum())
+
+    def flat(self, x: np.ndarray) -> np.ndarray:
+        """The counted samples of ``x`` (..., R, N), concatenated: (..., M)."""
+        return x[..., self.mask]
+
+
+#: Samples at the start of each run that do not count [1]: the simulation
+#: starts from the measured (noisy) rate, and which way the first stick/slip
+#: decisions go takes a few time constants (1/(1-a) ~ 10 samples) to forget.
+WARMUP = 50
+
+
+def stack_runs(runs: Sequence, warmup: int = WARMUP) -> RunStack:
+    """Stack runs (`isp_twin.measured.MeasuredData` or anything with
+    ``name, u, omega, angle, dt``).
+
+    Raises:
+        DataError: no runs, or runs with different sample periods.
+    """
+    if not runs:
+        raise DataError("diagnosis: no data sets given")
+    dt = float(runs[0].dt)
+    for r in runs:
+        if abs(float(r.dt) - dt) > 1e-9 * dt:
+            raise DataError(
+                f"{r.name}: sample period {r.dt} s differs from {runs[0].name}'s {dt} s; "
+                "all data sets of one diagnosis need the same period"
+            )
+    n = max(len(r.u) for r in runs)
+    shape = (len(runs), n)
+    u, omega, angle = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+    mask = np.zeros(shape, dtype=bool)
+    for i, r in enumerate(runs):
+        m = len(r.u)
+        u[i, :m] = r.u
+        omega[i, :m] = r.omega
+        angle[i, :m] = r.angle
+        angle[i, m:] = r.angle[-1]
+        mask[i, min(max(warmup, 1), m - 1) : m] = True
+    return RunStack(tuple(r.name for r in runs), u, omega, angle, mask, dt)
+
+
+def predict(
+    stack: RunStack,
+    rate_vectors: np.ndarray,
+    effects: Sequence[tuple[str, Mapping[str, np.ndarray]]] = (),
+    fixed: Sequence[EffectSpec] = (),
+):
+    """Simulate P model variants on every run of the stack.
+
+    Args:
+        stack: the runs.
+        rate_vectors: rate-form parameters, shape (P, 20) (`RateParams.to_vector`).
+        effects: (name, parameter name -> array (P,)) of effects that vary with the set.
+        fixed: effects with the same parameters for every set.
+
+    Returns:
+        `AxisResponse` with arrays of shape (P, R, N).
+    """
+    x = np.atleast_2d(rate_vectors)
+    p, r, n = x.shape[0], stack.u.shape[0], stack.u.shape[1]
+    rows = np.repeat(x, r, axis=0)  # set-major: row = set*R + run
+    batch = []
+    for name, params in effects:
+        batch.append(make_batched(name, {k: np.repeat(np.asarray(v, float), r) for k, v in params.items()}, stack.dt))
+    for spec in fixed:
+        batch.append(make_batched(spec.name, {k: np.full(p * r, v) for k, v in spec.params.items()}, stack.dt))
+    resp = simulate(
+        RateParams.from_vector(rows),
+        np.tile(stack.u, (p, 1)),
+        stack.dt,
+        omega0=np.tile(stack.omega[:, 0], p),
+        angle0=np.tile(stack.angle[:, 0], p),
+        angle_measured=np.tile(stack.angle, (p, 1)),
+        effects=batch,
+    )
+    if not np.all(np.isfinite(resp.omega)):
+        # A diverging variant is a bad parameter set, not an error: make it lose.
+        resp = type(resp)(np.nan_to_num(resp.omega, nan=1e3, posinf=1e3, neginf=-1e3), resp.angle, resp.regime, resp.omega_true)
+    shape = (p, r, n)
+    return type(resp)(
+        resp.omega.reshape(shape),
+        resp.angle.reshape(shape),
+        resp.regime.reshape(shape),
+        None if resp.omega_true is None else resp.omega_true.reshape(shape),
+    )
+
+
+def residuals(stack: RunStack, rate_vectors, effects=(), fixed=()) -> np.ndarray:
+    """Measured minus simulated rate on the counted samples, shape (P, M) [rad/s]."""
+    resp = predict(stack, rate_vectors, effects, fixed)
+    return stack.flat(stack.omega[None] - resp.omega)
+
+
+def residuals_many(
+    stack: RunStack,
+    requests: Sequence[tuple[np.ndarray, str | None, Mapping[str, np.ndarray]]],
+    fixed: Sequence[EffectSpec] = (),
+) -> list[np.ndarray]:
+    """Residuals of several model variants with different effects, in one time loop.
+
+    Every effect named in any request is applied to every row, with its
+    ``null`` parameters (no effect) on the rows of the other requests.
+
+    Args:
+        stack: the runs.
+        requests: (rate vectors (P_i, 20), effect name or None, effect
+            parameter name -> (P_i,)) per request.
+        fixed: effects shared by all.
+
+    Returns:
+        One array (P_i, M) per request [rad/s].
+    """
+    from isp_twin.effects import EFFECTS
+
+    sizes = [np.atleast_2d(x).shape[0] for x, _, _ in requests]
+    total = sum(sizes)
+    x = np.concatenate([np.atleast_2d(x) for x, _, _ in requests])
+    names = sorted({name for _, name, _ in requests if name})
+    effects = []
+    for name in names:
+        cls = EFFECTS[name]
+        cols = {p: np.full(total, float(cls.null[p])) for p in cls.param_names}
+        at = 0
+        for (_, req_name, params), size in zip(requests, sizes):
+            if req_name == name:
+                for p in cls.param_names:
+                    cols[p][at : at + size] = params[p]
+            at += size
+        effects.append((name, cols))
+    res = residuals(stack, x, effects, fixed)
+    return np.split(res, np.cumsum(sizes)[:-1])

@@ -1,0 +1,71 @@
+"""Cogging: a torque ripple periodic in the axis angle (motor slots and magnets)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from isp_twin.effects import Effect, register
+
+
+@register
+class Cogging(Effect):
+    """``accel = amplitude_rad_s2 * sin(2*pi*angle/period_rad + phase_rad)``.
+
+    Parameters: ``amplitude_rad_s2`` [rad/s^2], ``period_rad`` [rad] (2*pi over
+    the number of cogging periods per turn), ``phase_rad`` [rad].
+    """
+
+    name = "cogging"
+    param_names = ("amplitude_rad_s2", "period_rad", "phase_rad")
+    # Periods from 0.5 deg (hundreds of slots) to 90 deg (4 poles).
+    #: Parameters that make the effect do nothing.
+    null = {"amplitude_rad_s2": 0.0, "period_rad": 1.0, "phase_rad": 0.0}
+    bounds = {
+        "amplitude_rad_s2": (0.0, 200.0),
+        "period_rad": (0.0087, 1.58),
+        "phase_rad": (-2.0 * np.pi, 2.0 * np.pi),
+    }
+
+    def acceleration(self, angle, rate):
+        p = self.params
+        return p["amplitude_rad_s2"] * np.sin(2.0 * np.pi * angle / p["period_rad"] + p["phase_rad"])
+
+    @classmethod
+    def guesses(cls, ctx) -> list[dict[str, float]]:
+        """The period is searched: the three best peaks of a least-squares
+        periodogram of the residual's acceleration against angle."""
+        angle, acc = ctx.angle[ctx.moving], ctx.accel[ctx.moving]
+        if angle.size < 10:
+            return [{"amplitude_rad_s2": 0.0, "period_rad": 0.1, "phase_rad": 0.0}]
+        span = float(np.ptp(angle))
+        lo, hi = cls.bounds["period_rad"]
+        # At least two periods inside the travelled range; resolution 1/4 of a
+        # period shift across the range.
+        hi = min(hi, span / 2.0)
+        if hi <= lo:
+            hi = lo * 2
+        freqs = np.arange(1.0 / hi, 1.0 / lo, 0.25 / max(span, 1e-9))
+        freqs = freqs[:4000]
+        acc = acc - acc.mean()
+        phase = 2.0 * np.pi * np.outer(freqs, angle)
+        s, c = np.sin(phase), np.cos(phase)
+        ss, cc, sc = (s * s).sum(1), (c * c).sum(1), (s * c).sum(1)
+        ys, yc = s @ acc, c @ acc
+        det = np.maximum(ss * cc - sc * sc, 1e-12)
+        a = (cc * ys - sc * yc) / det
+        b = (ss * yc - sc * ys) / det
+        power = a * ys + b * yc
+        out = []
+        for i in np.argsort(power)[::-1]:
+            if any(abs(freqs[i] - 1.0 / g["period_rad"]) < 1.0 / max(span, 1e-9) for g in out):
+                continue
+            out.append(
+                {
+                    "amplitude_rad_s2": float(np.hypot(a[i], b[i])),
+                    "period_rad": float(1.0 / freqs[i]),
+                    "phase_rad": float(np.arctan2(b[i], a[i])),
+                }
+            )
+            if len(out) == 3:
+                break
+        return out
