@@ -95,7 +95,7 @@ def run_scenario(
     scenario: Scenario,
     params: ParameterSet | None = None,
     seed: int | None = None,
-    on_progress: Callable[[float], None] | None = None,
+    on_progress: Callable[[float, float], None] | None = None,
     nfc_params: ParameterSet | None = None,
 ) -> RunResult:
     """Simulate a closed-loop scenario on the MuJoCo twin.
@@ -104,8 +104,8 @@ def run_scenario(
         scenario: a ``kind: closed_loop`` scenario.
         params: the twin's parameter set (default: the scenario's file).
         seed: noise seed (default: the scenario's).
-        on_progress: called with the fraction done (0..1) every 0.5 s of
-            simulated time.
+        on_progress: called as ``on_progress(t, duration_s)`` [s] every
+            0.5 s of simulated time and at the end.
         nfc_params: the model the NFC compensates with (default: `params`,
             i.e. a perfectly identified plant).
 
@@ -221,12 +221,12 @@ def run_scenario(
             done = k + 1
             if k + 1 < n:
                 twin.step(command, targets_list[k])
-            if on_progress is not None and k % PROGRESS_EVERY == 0:
-                on_progress(k / (n - 1))
+            if on_progress is not None and k % PROGRESS_EVERY == 0 and k + 1 < n:
+                on_progress(t[k], t[-1])
     except KeyboardInterrupt:
         interrupted = True
     if on_progress is not None and not interrupted:
-        on_progress(1.0)
+        on_progress(t[-1], t[-1])
 
     t = t[:done]
     signals = {key: v[:done] for key, v in rec.items()}

@@ -19,9 +19,9 @@ Definitions, per inner axis (inner_az, inner_el):
 * max_abs_error_deg_s = max|omega_1|; rms_error_deg_s = sqrt(mean(omega_1^2))
   (the paper's "mean square value of error", quoted in deg/s).
 
-J is reported as None for an axis whose carrier rate stays below
-`MIN_CARRIER_RATE` (e.g. inner_el when only the yaw moves): Eq. 10 is
-undefined there.
+An axis whose carrier rate stays below `MIN_CARRIER_RATE` (e.g. inner_el
+when only the yaw moves) has no J (Eq. 10 is undefined): `run_metrics`
+leaves it out, `axis_metrics` gives None.
 """
 
 from __future__ import annotations
@@ -79,16 +79,19 @@ def run_metrics(
         skip_s: start of the steady-state window [s].
 
     Returns:
-        axis -> {isolation_percent, max_abs_error_deg_s, rms_error_deg_s};
-        empty when the window holds no sample (a run interrupted early).
+        axis -> {isolation_percent, max_abs_error_deg_s, rms_error_deg_s},
+        for the axes that see carrier motion; empty when the window holds no
+        sample (a run interrupted early).
     """
     window = np.asarray(t) >= skip_s - 1e-12
     if not np.any(window):
         return {}
-    return {
-        a: axis_metrics(signals[f"{a}/omega_inertial"][window], signals[f"{a}/omega_carrier"][window])
-        for a in axes
-    }
+    out = {}
+    for a in axes:
+        m = axis_metrics(signals[f"{a}/omega_inertial"][window], signals[f"{a}/omega_carrier"][window])
+        if m["isolation_percent"] is not None:
+            out[a] = m
+    return out
 
 
 @dataclass(frozen=True)
