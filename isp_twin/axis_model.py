@@ -22,8 +22,11 @@ Discrete stick-slip, the decisions Eq. 6 leaves open:
 * Extra effects (`isp_twin.effects`), applied per sample as in the twin: the
   command passes through each ``command`` hook, the ``acceleration`` hooks
   (at the angle that selects the half-plane and the rate of the previous
-  sample) add ``accel*T`` to the drive, and the rate is reported through the
-  ``measure`` hooks (gyro errors, structural modes).
+  sample) add ``accel*T*(1-a)/(-ln a)`` to the drive, and the rate is
+  reported through the ``measure`` hooks (gyro errors, structural modes).
+  The factor is the exact zero-order hold of the twin (docs/axis_model.md:
+  a torque held over a sample raises the rate by (1-a)/eta per N·m, and
+  eta = -J ln(a)/T), so an effect's torque/J means the same in both engines.
 """
 
 from __future__ import annotations
@@ -139,6 +142,10 @@ def simulate(
     # One gather per step: row*4 + regime indexes the (P*4, 5) table.
     table = np.stack([pole, gain, static, coulomb, alpha], axis=-1).reshape(n_sets * 4, 5)
     gain_flat = table[:, 1]
+    # Rate gained per sample from a constant acceleration, per (set, regime),
+    # over dt: the twin's zero-order hold (module doc); -> 1 as a -> 1.
+    a_flat = np.clip(table[:, 0], 1e-12, 1.0 - 1e-12)
+    hold = (1.0 - a_flat) / -np.log(a_flat) * dt
     base = rows * 4
     for k in range(1, n):
         side_angle = y if angle_measured is None else angle_measured[k - 1]
@@ -146,9 +153,7 @@ def simulate(
         for e in commands:
             uk = e.command(uk)
         more = None if extra is None else extra[:, k - 1]
-        if torques:
-            acc = sum(e.acceleration(side_angle, w) for e in torques) * dt
-            more = acc if more is None else more + acc
+        acc = sum(e.acceleration(side_angle, w) for e in torques) if torques else None
         # Regime index as `regime_index`: 2*(angle <= 0) + (direction < 0).
         side = base + 2 * (side_angle <= 0.0)
         moving = w != 0.0
@@ -157,11 +162,15 @@ def simulate(
         probe = gain_flat[side] * uk
         if more is not None:
             probe = probe + more
+        if acc is not None:
+            probe = probe + acc * hold[side]
         idx = side + np.where(moving, w < 0.0, probe < 0.0)
         a, g, ts, tc, al = table[idx].T
         drive = g * uk
         if more is not None:
             drive = drive + more
+        if acc is not None:
+            drive = drive + acc * hold[idx]
         slide = np.sign(w) * stribeck_magnitude(np.abs(w), ts, tc, al)
         w_move = a * w + drive - slide
         # Friction cannot reverse the motion: a sign change ends at rest.

@@ -84,10 +84,14 @@ class Diagnosis:
         rmse_after: held-out RMS error of the final model [rad/s].
         noise_floor: noise estimate [rad/s] (first round).
         params_out: the updated parameter set (effects added, rate parameters
-            re-identified); the input set when nothing was found.
+            re-identified). Without a new effect: the plain re-identification
+            if it passes the acceptance rule against the given parameters
+            (`refit`), else the input set.
         analysis_before / analysis_after: residual analyses on the training
             runs, given model and final model.
         holdout_names: the held-out runs (or "cross-validation").
+        refit: the re-identification without a new effect judged against the
+            given parameters.
     """
 
     axis: str
@@ -101,6 +105,7 @@ class Diagnosis:
     residual_before: tuple = ()
     residual_after: tuple = ()
     holdout_names: tuple[str, ...] = ()
+    refit: Verdict | None = None
     stack: RunStack | None = field(default=None, repr=False)
 
     @property
@@ -128,6 +133,7 @@ class Diagnosis:
             "rmse_before": self.rmse_before,
             "rmse_baseline_refit": float(_rms(first.holdout_before)),
             "rmse_after": self.rmse_after,
+            "refit_adopted": bool(not acc and self.refit is not None and self.refit.significant),
             "noise_floor": self.noise_floor,
             "holdout": list(self.holdout_names),
             "ranking": [
@@ -286,15 +292,28 @@ def diagnose(
         if not remaining:
             break
 
-    final = rounds[-1].model if rounds[-1].selected != BASELINE else (current or None)
-    if final is None or final.name == BASELINE and not [r for r in rounds if r.selected != BASELINE]:
+    accepted = [r for r in rounds if r.selected != BASELINE]
+    m = train.n_samples
+    given_res = train.flat(train.omega - _one(predict(train, x_file[None], (), tuple(ax.effects))).omega)
+    bic_given = float(m * np.log(max(given_res @ given_res, 1e-300) / m) + 20 * np.log(m))
+    # Without a new effect, the plain re-identification is kept if it passes
+    # the same rule against the given parameters.
+    refit = judge("refit", before_held, rounds[0].holdout_before, bic_given, rounds[0].baseline.bic, rounds[0].noise_floor)
+    if accepted:
+        final = accepted[-1].model
+        after_held = accepted[-1].holdout_after
+    elif refit.significant:
+        final = rounds[0].baseline
+        after_held = rounds[0].holdout_before
+    else:
+        final = None
+        after_held = before_held
+    if final is None:
         params_out = params
         final_x, final_fixed = x_file, tuple(ax.effects)
-        after_held = before_held
     else:
         final_x, final_fixed = final.rate_vector, final.effects()
         params_out = params.with_axis(axis, _updated_axis(ax, final))
-        after_held = rounds[-1].holdout_after if rounds[-1].selected != BASELINE else rounds[-1].holdout_before
     analysis_after = analyse(train, _one(predict(train, final_x[None], (), final_fixed)))
     res_before = train.omega - _one(predict(train, x_file[None], (), tuple(ax.effects))).omega
     res_after = train.omega - _one(predict(train, final_x[None], (), final_fixed)).omega
@@ -310,6 +329,7 @@ def diagnose(
         residual_before=tuple(res_before),
         residual_after=tuple(res_after),
         holdout_names=holdout_names,
+        refit=refit,
         stack=train,
     )
 

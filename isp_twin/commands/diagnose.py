@@ -1,0 +1,130 @@
+"""`isp-twin diagnose DATA... --params P`: find what the model of an axis misses."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import replace
+from pathlib import Path
+
+from isp_twin.atomic import write_text_atomic
+from isp_twin.errors import ParameterError
+from isp_twin.measured import DataMapping, load_data_description, load_measured, mapping_from_options
+from isp_twin.parameters import AXES, load_parameters, save_parameters
+from isp_twin.units import DEG
+
+__all__ = ["add_parser", "execute"]
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "diagnose",
+        help="find an effect the model misses in measured open-loop data (residual analysis)",
+        description=(
+            "Simulate the model of one axis on measured open-loop runs, analyse the residual "
+            "(whiteness, input correlation, spectrum, noise floor), refit the model with each "
+            "candidate effect of the library, compare on held-out data (--holdout, or "
+            "leave-one-run-out cross-validation), accept the best only if significant, and "
+            "look again. DATA: canonical CSV (t [s], u, omega [deg/s], theta [deg]) or, with "
+            "--map / --describe, other CSV or .mat files."
+        ),
+    )
+    p.add_argument("data", nargs="+", metavar="DATA", help="training runs")
+    p.add_argument("--params", required=True, type=Path, help="current parameter file (YAML)")
+    p.add_argument("--holdout", nargs="+", default=[], metavar="DATA", help="held-out runs")
+    p.add_argument("--out", type=Path, default=None, help="updated parameter file (YAML)")
+    p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
+    p.add_argument("--map", action="append", default=[], metavar="KEY=SOURCE[*SCALE]",
+                   help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad")
+    p.add_argument("--describe", type=Path, default=None, help="YAML data description (instead of --map)")
+    p.add_argument("--candidates", default=None, metavar="A,B,...",
+                   help="comma-separated effects to test (default: the whole library)")
+    p.add_argument("--max-rounds", type=int, default=2, help="at most this many effects are added")
+    p.add_argument("--iterations", type=int, default=6, help="Levenberg-Marquardt iterations per refit")
+    p.add_argument("--json", type=Path, default=None, metavar="PATH", help="write the result as JSON")
+    p.add_argument("--report", type=Path, default=None, metavar="DIR",
+                   help="report folder (default: beside --out, else diagnosis_report/)")
+    p.add_argument("--recording", type=Path, default=None, metavar="PATH",
+                   help="Rerun recording of the residuals (default: REPORT_DIR/residuals.rrd)")
+    p.add_argument("--no-recording", action="store_true", help="do not write a Rerun recording")
+    p.set_defaults(execute=execute)
+
+
+def _mapping(args) -> DataMapping | None:
+    if args.describe is not None:
+        return load_data_description(args.describe)
+    if args.map:
+        return mapping_from_options(args.map)
+    return None
+
+
+def execute(args: argparse.Namespace) -> int:
+    from isp_twin.diagnosis.report import write_recording, write_report
+    from isp_twin.diagnosis.search import diagnose
+
+    if args.max_rounds < 1:
+        raise ParameterError(f"--max-rounds must be >= 1, got {args.max_rounds}")
+    if args.iterations < 1:
+        raise ParameterError(f"--iterations must be >= 1, got {args.iterations}")
+    params = load_parameters(args.params)
+    mapping = _mapping(args)
+    train = [load_measured(p, mapping) for p in args.data]
+    holdout = [load_measured(p, mapping) for p in args.holdout]
+    candidates = None
+    if args.candidates:
+        candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
+    diag = diagnose(
+        train,
+        params,
+        args.axis,
+        holdout=holdout,
+        candidates=candidates,
+        max_rounds=args.max_rounds,
+        max_iter=args.iterations,
+    )
+    result = diag.to_json()
+
+    print(f"diagnosis of {args.axis} on {len(train)} run(s); held out: {', '.join(diag.holdout_names)}")
+    for i, r in enumerate(diag.rounds, 1):
+        print(f"round {i}: {'no missing effect found' if r.selected == 'none' else 'selected ' + r.selected}")
+        print(f"  {'candidate':<14} {'held-out RMS':>13} {'z':>7} {'dBIC':>10}  verdict")
+        for v in r.verdicts:
+            print(f"  {v.name:<14} {v.holdout_rmse / DEG:>9.4g} deg/s {v.improvement_z:>7.2f} "
+                  f"{v.delta_bic:>10.1f}  {'ACCEPT ' if v.significant else ''}{v.reason}")
+    for fit in diag.accepted:
+        print(f"{fit.name}:")
+        for k, v in fit.params.items():
+            print(f"  {k} = {v:.6g} ± {fit.ci95[k]:.3g}")
+    print(
+        f"held-out RMS error: before {diag.rmse_before / DEG:.4g} deg/s, after {diag.rmse_after / DEG:.4g} deg/s, "
+        f"noise floor {diag.noise_floor / DEG:.4g} deg/s"
+    )
+    if diag.selected_effect == "none":
+        print("no missing effect found")
+        if result["refit_adopted"]:
+            print("(the parameters re-identified without a new effect fit significantly better: "
+                  "they are the ones written)")
+
+    if args.out is not None:
+        out_set = replace(diag.params_out, name=args.out.stem, path=None)
+        save_parameters(out_set, args.out)
+        print(f"parameters written to {args.out}")
+    report_dir = args.report or (args.out.parent if args.out is not None else Path("diagnosis_report"))
+    stem = args.out.stem if args.out is not None else "diagnosis"
+    report = write_report(diag, Path(report_dir) / f"{stem}_diagnosis.md", args.out)
+    print(f"report written to {report}")
+    if not args.no_recording:
+        path = args.recording or Path(report_dir) / f"{stem}_residuals.rrd"
+        write_recording(diag, path)
+        print(f"recording written to {path}  (open it with: rerun {path})")
+    if args.json is not None:
+        write_text_atomic(args.json, json.dumps(result, indent=2, default=_json_default) + "\n")
+        print(f"result written to {args.json}")
+    return 0
+
+
+def _json_default(x):
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return str(x)
