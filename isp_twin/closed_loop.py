@@ -159,7 +159,10 @@ def run_scenario(
     follow = f.enabled
     centers = [f.inner_az_center_deg * DEG, f.inner_el_center_deg * DEG]
 
-    twin.reset()
+    initial = {a: v * DEG for a, v in scenario.initial_angles_deg.as_dict().items() if v != 0.0}
+    twin.reset(initial or None)
+    for res, a in zip(resolvers, INNER_AXES + OUTER_AXES):
+        res.reset(initial.get(a, 0.0))
     names_inner = ("omega_carrier", "omega_inertial", "omega_relative", "gyro", "command",
                    "friction", "nfc", "regime")
     rec = {f"{a}/{s}": np.zeros(n) for a in INNER_AXES for s in names_inner}

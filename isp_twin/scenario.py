@@ -43,6 +43,7 @@ __all__ = [
     "GyroModel",
     "ResolverModel",
     "Follower",
+    "InitialAngles",
     "Metrics",
     "Record",
     "OpenLoopCommand",
@@ -232,6 +233,19 @@ class Follower:
 
 
 @dataclass(frozen=True)
+class InitialAngles:
+    """Gimbal angles at t = 0 [deg] (relative, as the resolvers read them)."""
+
+    inner_az: float = _f(0.0, "inner azimuth [deg]", min=-3.5, max=3.5)
+    inner_el: float = _f(0.0, "inner elevation [deg]", min=-3.5, max=3.5)
+    outer_az: float = _f(0.0, "outer azimuth [deg]", min=-90.0, max=90.0)
+    outer_el: float = _f(0.0, "outer elevation [deg]", min=-90.0, max=90.0)
+
+    def as_dict(self) -> dict[str, float]:
+        return {a: getattr(self, a) for a in INNER_AXES + OUTER_AXES}
+
+
+@dataclass(frozen=True)
 class Metrics:
     """Which part of the run the metrics use."""
 
@@ -293,6 +307,7 @@ class Scenario:
     gyro: GyroModel = _sub(GyroModel, "gyro model")
     resolver: ResolverModel = _sub(ResolverModel, "resolver model")
     follower: Follower = _sub(Follower, "outer-gimbal followers")
+    initial_angles_deg: InitialAngles = _sub(InitialAngles, "gimbal angles at t = 0 [deg]")
     metrics: Metrics = _sub(Metrics, "metrics window")
     record: Record = _sub(Record, "recording options")
     open_loop: OpenLoop = _sub(OpenLoop, "open-loop experiment (kind: open_loop)")
