@@ -88,7 +88,8 @@ def run_metrics(
         return {}
     out = {}
     for a in axes:
-        m = axis_metrics(signals[f"{a}/omega_inertial"][window], signals[f"{a}/omega_carrier"][window])
+        w1 = signals[f"{a}/omega_inertial"][window]
+        m = axis_metrics(w1, signals[f"{a}/omega_carrier"][window])
         if m["isolation_percent"] is not None:
             out[a] = m
     return out

@@ -108,3 +108,27 @@ def test_outer_followers_keep_the_inner_gimbals_off_their_stops():
         assert np.max(np.abs(result.joint_angles[axis])) < 3.0 * DEG
     # the turntable swings 3 deg; the outer gimbals take it
     assert np.max(np.abs(result.joint_angles["outer_az"])) > 2.0 * DEG
+
+
+def test_campaign_command_writes_the_table5_statistics_as_json(tmp_path, capsys):
+    import json
+
+    from isp_twin.cli import main
+
+    out = tmp_path / "c.json"
+    assert main(["campaign", "tracking_0_5Hz", "-n", "2", "--jobs", "1", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["scenario"] == "tracking_0_5Hz" and doc["seeds"] == [1, 2]
+    stats = doc["metrics"]["inner_az"]
+    for variant in ("PI", "PI+NFC"):
+        s = stats[variant]
+        assert len(s["runs"]) == 2 and s["best"] <= s["average"] <= s["worst"]
+        assert s["range"] == s["worst"] - s["best"]
+    assert "NFC reduces the average J" in capsys.readouterr().out
+
+
+def test_campaign_command_rejects_an_open_loop_scenario(capsys):
+    from isp_twin.cli import main
+
+    assert main(["campaign", "openloop_0_5Hz", "-n", "1"]) == 2
+    assert "closed_loop" in capsys.readouterr().err

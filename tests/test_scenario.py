@@ -94,7 +94,8 @@ def test_closed_loop_without_carrier_motion_is_rejected():
 
 
 def test_duration_shorter_than_the_discarded_transient_is_rejected():
-    raw = {"duration_s": 1.0, "turntable": {"table_yaw": {"rate_amplitude_deg_s": 1.0, "freq_hz": 0.5}}}
+    motion = {"rate_amplitude_deg_s": 1.0, "freq_hz": 0.5}
+    raw = {"duration_s": 1.0, "turntable": {"table_yaw": motion}}
     with pytest.raises(ScenarioError, match="metrics.skip_s"):
         parse_scenario(raw, "s.yaml")
 
