@@ -71,6 +71,7 @@ __all__ = [
     "rmse",
     "identify",
     "to_axis_params",
+    "stored_form",
 ]
 
 #: Names of the five rate-form quantities per regime, `RateParams.to_vector` order.
@@ -343,6 +344,60 @@ def _confidence(jac: np.ndarray, resid: np.ndarray, breaks: list[int], level: fl
     return ci, ci_floor, rho
 
 
+def stored_form(x: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rate-form vectors (..., 20) as they come back from a parameter file.
+
+    The file holds the paper form (b fixed) to 6 significant digits
+    (`isp_twin.parameters.save_parameters`); this applies the same rounding.
+    """
+    x = np.asarray(x, dtype=float).reshape(*np.shape(x)[:-1], 4, 5)
+    paper = x.copy()
+    paper[..., 1:4] = x[..., 1:4] / DEG / b[:, None]
+    paper[..., 4] = x[..., 4] * DEG
+    rounded = np.vectorize(lambda v: float(f"{v:.6g}"))(paper)
+    out = rounded.copy()
+    out[..., 1:4] = rounded[..., 1:4] * DEG * b[:, None]
+    out[..., 4] = rounded[..., 4] / DEG
+    return out.reshape(*np.shape(x)[:-2], 20)
+
+
+def _robust_to_storage(x: np.ndarray, cost, free: np.ndarray, b: np.ndarray, step: float = 1e-4):
+    """A point whose stored (rounded) form keeps the fit; (x, moved?).
+
+    Stick/slip makes the cost jump where a static level equals a drive the
+    data hold for long (a torque step that only just breaks away): the
+    optimum can sit on that cliff, and rounding the file's values then
+    throws it off. If the stored form is more than 1 % worse, each free
+    quantity is moved by ±`step` (relative) and the best stored candidate
+    is taken (one batched simulation).
+    """
+    b = np.asarray(b, dtype=float)
+    full_x = x
+
+    def cost_of(points_free: np.ndarray) -> np.ndarray:
+        return np.atleast_1d(cost(points_free))
+
+    stored = stored_form(_embed(full_x, free, b), b)
+    exact = float(cost_of(x[None])[0])
+    rounded = float(cost_of(stored[None][:, free])[0])
+    if rounded <= 1.01 * exact + 1e-15:
+        return stored[free], False
+    deltas = np.vstack([np.diag(step * np.abs(x)), -np.diag(step * np.abs(x))])
+    cands = stored_form(np.array([_embed(x + dlt, free, b) for dlt in deltas]), b)[:, free]
+    costs = cost_of(cands)
+    best = int(np.argmin(costs))
+    if costs[best] < rounded:
+        return cands[best], True
+    return stored[free], False
+
+
+def _embed(x_free: np.ndarray, free: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Free quantities into a (20,) vector (fixed ones: 1, never used after)."""
+    out = np.ones(20)
+    out[free] = x_free
+    return out
+
+
 def identify(
     data: Sequence[MeasuredData],
     prior: AxisParams,
@@ -470,6 +525,10 @@ def identify(
         if progress is not None:
             progress("refine", ls.nfev, history[-1])
         status += f"; least-squares refinement ({ls.nfev} evaluations, {ls.message.rstrip('.')})"
+    b = np.array([r.b for r in prior.regimes])
+    x_best, moved = _robust_to_storage(x_best, lambda xs: rmse(full(xs), data, s.side, rest), free, b)
+    if moved:
+        status += "; moved off a stick/slip threshold so that the stored 6-digit values reproduce the fit"
     evaluate(x_best)
     e, j = cache["e"], cache["j"]
     breaks = list(np.cumsum([0] + [len(d) - 1 for d in data]))

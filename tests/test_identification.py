@@ -22,7 +22,7 @@ from isp_twin.identification import (
     to_axis_params,
 )
 from isp_twin.measured import save_measured
-from isp_twin.parameters import REGIMES, load_parameters
+from isp_twin.parameters import ParameterSet, load_parameters, save_parameters
 from isp_twin.units import DEG
 
 # Short test data: two of the paper-set variations at 1 Hz, 1000 samples
@@ -92,6 +92,14 @@ def test_noisy_data_intervals_cover_the_truth(noisy_results, truth):
     assert np.mean(inside) >= 0.9
 
 
+def test_result_is_exactly_what_the_parameter_file_stores(clean_result, truth, tmp_path):
+    prior = _perturbed_prior(truth)
+    axis = to_axis_params(clean_result, prior)
+    path = save_parameters(ParameterSet("t", {"inner_az": axis}), tmp_path / "p.yaml")
+    back = load_parameters(path).axis("inner_az").rate_params().to_vector()
+    np.testing.assert_allclose(back, clean_result.vector, rtol=1e-12)
+
+
 def test_equation_error_start_is_close_on_clean_data(paper_params, truth):
     est = equation_error_estimate(_data(paper_params, 0.0), _perturbed_prior(truth).rate_params())
     # Poles and gains are nearly exact in one step; the curve levels are looser.
@@ -157,8 +165,10 @@ def test_identify_command_end_to_end(tmp_path, paper_params, truth, capsys):
     report = (tmp_path / "id_report.md").read_text()
     assert "Table 2" in report and "Table 3" in report
     assert (tmp_path / f"id_report_{data[0].name}.png").stat().st_size > 1000
-    # The identified set reproduces the data as well as the truth does.
+    # The file as stored (6 digits) reproduces the reported fit, and fits the
+    # data as well as the truth does.
     got = ps.axis("inner_az").rate_params()
+    assert rmse(got, data) / DEG == pytest.approx(summary["cost_deg_s"], rel=1e-6)
     assert rmse(got, data) <= 1.05 * rmse(truth.rate_params(), data)
 
 
