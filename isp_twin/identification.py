@@ -19,9 +19,13 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    biased by rate noise, so it only centres the search.
 4. **Global search.** Differential evolution (scipy, seeded, vectorized: the
    population is the batch dimension of `isp_twin.axis_model.simulate`)
-   minimizes Eq. 9, the RMS of the simulated-rate error over all sets at once.
+   minimizes Eq. 9, the RMS of the simulated-rate error over all sets at once,
+   in a box spanning the start and the prior (widened by `search_factor`).
 5. **Local refinement.** `scipy.optimize.least_squares` on the residual
-   vector, with a batched finite-difference Jacobian.
+   vector, with a batched finite-difference Jacobian. The result is then
+   taken in the form the parameter file stores (6 digits), moved off a
+   stick/slip threshold if the rounding would spoil the fit
+   (`_robust_to_storage`).
 6. **Confidence intervals** from the Jacobian: ``cov = s^2 (J^T J)^-1``,
    inflated by ``(1 + rho)/(1 - rho)`` for a lag-1 residual correlation
    rho > 0 (effective sample size), with the Student t quantile. A
@@ -100,8 +104,9 @@ class Settings:
         min_regime_samples: moving samples below which a regime is not identified.
         rest_rate_deg_s: |rate| at or below this counts as "at rest" [deg/s].
         side: half-plane selection, one of `SIDES`.
-        search_factor: DE bounds are [x0/f, x0*f] around the initial estimate
-            (for the pole: on 1 - a).
+        search_factor: DE bounds span the initial estimate and the prior,
+            widened by this factor (for the pole: on 1 - a); both are members
+            of the first population.
         confidence: level of the intervals.
     """
 
@@ -306,12 +311,18 @@ def equation_error_estimate(
 # ------------------------------------------------------------ search
 
 
-def _bounds(x0: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:
-    lo, hi = x0 / factor, x0 * factor
+def _bounds(x0: np.ndarray, x_prior: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:
+    """Search box spanning the start and the prior, widened by `factor`.
+
+    The pole is bounded on 1 - a (the time constant), others on the value.
+    """
+    lo = np.minimum(x0, x_prior) / factor
+    hi = np.maximum(x0, x_prior) * factor
     pole = np.arange(x0.size) % 5 == 0
-    slack = 1.0 - x0[pole]
-    lo[pole] = 1.0 - np.minimum(slack * factor, 0.999)
-    hi[pole] = 1.0 - slack / factor
+    slack_lo = np.minimum(1.0 - x0[pole], 1.0 - x_prior[pole])
+    slack_hi = np.maximum(1.0 - x0[pole], 1.0 - x_prior[pole])
+    lo[pole] = 1.0 - np.minimum(slack_hi * factor, 0.999)
+    hi[pole] = 1.0 - slack_lo / factor
     return lo, hi
 
 
@@ -458,10 +469,11 @@ def identify(
     x_best = x0
     status = "equation-error estimate"
     if s.generations > 0:
-        lo, hi = _bounds(x0, s.search_factor)
+        x_prior = prior_rate.to_vector()[free]
+        lo, hi = _bounds(x0, x_prior, s.search_factor)
         rng = np.random.default_rng(s.seed)
         init = lo + (hi - lo) * rng.random((s.population, x0.size))
-        init[0] = x0
+        init[0], init[1] = x0, x_prior
 
         def on_generation(intermediate_result):
             history.append(float(intermediate_result.fun))
