@@ -16,7 +16,8 @@ Signals of the `RunResult` (SI, shape (N,)): per inner axis
 ``omega_carrier`` (omega of Eq. 10), ``omega_inertial`` (true omega_1),
 ``omega_relative`` (omega_2), ``gyro`` (the reading, rad/s), ``command``
 [digits], ``friction`` [N·m], ``nfc`` [digits], ``regime``; per outer axis
-``follow_error`` [rad] (the inner gimbal's angle) and ``command`` [digits].
+``follow_error`` [rad] (the true inner gimbal angle minus its centre; with
+the follower off, minus the outer gimbal's own angle) and ``command`` [digits].
 """
 
 from __future__ import annotations
@@ -163,28 +164,26 @@ def run_scenario(
     twin.reset(initial or None)
     for res, a in zip(resolvers, INNER_AXES + OUTER_AXES):
         res.reset(initial.get(a, 0.0))
-    names_inner = ("omega_carrier", "omega_inertial", "omega_relative", "gyro", "command",
-                   "friction", "nfc", "regime")
-    rec = {f"{a}/{s}": np.zeros(n) for a in INNER_AXES for s in names_inner}
-    for a in OUTER_AXES:
-        rec[f"{a}/follow_error"] = np.zeros(n)
-        rec[f"{a}/command"] = np.zeros(n)
-    joints = {j: np.zeros(n) for j in TABLE_AXES + INNER_AXES + OUTER_AXES}
-    cols = {key: rec[key] for key in rec}
-    # Gimbal index in the twin's (4,) arrays: inner_az, inner_el, outer_az, outer_el.
-    gyro_to_rate = [gy.to_rate for gy in gyros]
+    inner_signals = ("omega_carrier", "omega_inertial", "omega_relative", "gyro", "command",
+                     "friction", "nfc", "regime")
+    columns = [f"{a}/{sig}" for a in INNER_AXES for sig in inner_signals]
+    columns += [f"{a}/{sig}" for a in OUTER_AXES for sig in ("follow_error", "command")]
+    joint_names = TABLE_AXES + INNER_AXES + OUTER_AXES  # the twin's gimbal order after the table
+    # One row per sample, written at once: the per-step Python stays lean.
+    buf = np.zeros((n, len(columns) + len(joint_names)))
     command = [0.0, 0.0, 0.0, 0.0]
+    row = [0.0] * buf.shape[1]
     interrupted = False
     done = 0
     try:
         for k in range(n):
-            s = twin.state()
-            angle = s.angle.tolist()
-            rate = s.rate.tolist()
-            w1 = s.gyro.tolist()
-            wc = s.carrier_rate.tolist()
-            friction = s.friction.tolist()
-            regime = s.regime.tolist()
+            st = twin.state()
+            angle = st.angle.tolist()
+            rate = st.rate.tolist()
+            w1 = st.gyro.tolist()
+            wc = st.carrier_rate.tolist()
+            friction = st.friction.tolist()
+            regime = st.regime.tolist()
             meas = [res.read(angle[i]) for i, res in enumerate(resolvers)]
             for i in range(2):
                 if not -DIVERGED_RATE < w1[i] < DIVERGED_RATE:
@@ -200,27 +199,21 @@ def run_scenario(
                         f"closed loop diverged at t={t[k]:.3f} s: {INNER_AXES[i]}/command is NaN"
                     )
                 command[i] = u
-                a = INNER_AXES[i]
-                cols[f"{a}/omega_carrier"][k] = wc[i]
-                cols[f"{a}/omega_inertial"][k] = w1[i]
-                cols[f"{a}/omega_relative"][k] = rate[i]
-                cols[f"{a}/gyro"][k] = gyro_to_rate[i](counts)
-                cols[f"{a}/command"][k] = u
-                cols[f"{a}/friction"][k] = friction[i]
-                cols[f"{a}/nfc"][k] = u_nfc
-                cols[f"{a}/regime"][k] = regime[i]
+                row[8 * i : 8 * i + 8] = (wc[i], w1[i], rate[i], gyros[i].to_rate(counts), u,
+                                          friction[i], u_nfc, regime[i])
             for j in range(2):
-                # outer_az follows inner_az, outer_el follows inner_el
-                # Follower off: the outer gimbal holds its own zero instead.
-                err = meas[j][0] - centers[j] if follow else -meas[2 + j][0]
+                # outer_az follows inner_az, outer_el follows inner_el; with the
+                # follower off the outer gimbal holds its own zero instead.
+                if follow:
+                    err, true_err = meas[j][0] - centers[j], angle[j] - centers[j]
+                else:
+                    err, true_err = -meas[2 + j][0], -angle[2 + j]
                 uo = followers[j].step(err, meas[2 + j][1])
                 command[2 + j] = uo
-                cols[f"{OUTER_AXES[j]}/follow_error"][k] = angle[j]
-                cols[f"{OUTER_AXES[j]}/command"][k] = uo
-            for name, value in zip(TABLE_AXES, s.table_angle.tolist()):
-                joints[name][k] = value
-            for idx, name in enumerate(("inner_az", "inner_el", "outer_az", "outer_el")):
-                joints[name][k] = angle[idx]
+                row[16 + 2 * j : 18 + 2 * j] = (true_err, uo)
+            row[20:23] = st.table_angle.tolist()
+            row[23:27] = angle
+            buf[k] = row
             done = k + 1
             if k + 1 < n:
                 twin.step(command, targets_list[k])
@@ -231,9 +224,12 @@ def run_scenario(
     if on_progress is not None and not interrupted:
         on_progress(t[-1], t[-1])
 
+    buf = buf[:done]
+    signals = {name: buf[:, c].copy() for c, name in enumerate(columns)}
+    joint_angles = {
+        name: buf[:, len(columns) + c].copy() for c, name in enumerate(joint_names)
+    }
     t = t[:done]
-    signals = {key: v[:done] for key, v in rec.items()}
-    joint_angles = {key: v[:done] for key, v in joints.items()}
     metrics = run_metrics(t, signals, scenario.skip_s)
     return RunResult(
         scenario=scenario.name,

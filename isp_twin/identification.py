@@ -383,12 +383,11 @@ def _robust_to_storage(x: np.ndarray, cost, free: np.ndarray, b: np.ndarray, ste
     is taken (one batched simulation).
     """
     b = np.asarray(b, dtype=float)
-    full_x = x
 
     def cost_of(points_free: np.ndarray) -> np.ndarray:
         return np.atleast_1d(cost(points_free))
 
-    stored = stored_form(_embed(full_x, free, b), b)
+    stored = stored_form(_embed(x, free, b), b)
     exact = float(cost_of(x[None])[0])
     rounded = float(cost_of(stored[None][:, free])[0])
     if rounded <= 1.01 * exact + 1e-15:
@@ -580,7 +579,7 @@ def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = 
     """
     b = tuple(r.b for r in prior.regimes)
     regimes = list(result.rate.to_regimes(b))
-    ci_rate = RateParams.from_vector(np.nan_to_num(result.ci95, nan=np.nan))
+    ci_rate = RateParams.from_vector(result.ci95)
     ci_regimes: list[RegimeParams | None] = []
     for r in range(4):
         if not result.regime_identified[r]:

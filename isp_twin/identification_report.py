@@ -12,7 +12,6 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
 
 from isp_twin.atomic import atomic_path, write_text_atomic
 from isp_twin.identification import (

@@ -53,7 +53,6 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -519,15 +518,3 @@ def save_measured(data: MeasuredData, path: str | Path) -> Path:
     with atomic_path(path) as tmp:
         np.savetxt(tmp, table, delimiter=",", header=",".join(SIGNALS), comments="", fmt="%.10g")
     return path
-
-
-def _describe(data: MeasuredData) -> dict[str, Any]:
-    """Short summary (for reports): samples, duration, ranges in edge units."""
-    return {
-        "name": data.name,
-        "samples": len(data),
-        "dt_s": data.dt,
-        "duration_s": float(data.t[-1] - data.t[0]),
-        "omega_range_deg_s": (float(data.omega.min() / DEG), float(data.omega.max() / DEG)),
-        "angle_range_deg": (float(data.angle.min() / DEG), float(data.angle.max() / DEG)),
-    }

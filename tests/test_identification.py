@@ -180,3 +180,12 @@ def test_identify_command_bad_data_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "bad.csv: row 32" in err
     assert not out.exists()
+
+
+def test_identify_command_rejects_data_at_another_sample_rate(tmp_path, capsys):
+    t = np.arange(100) * 2e-3
+    path = tmp_path / "slow.csv"
+    np.savetxt(path, np.column_stack([t, 100 * np.sin(t), np.sin(t), np.cos(t)]), delimiter=",",
+               header="t,u,omega,theta", comments="")
+    assert main(["identify", str(path), "--out", str(tmp_path / "p.yaml")]) == 2
+    assert "slow.csv: sample period 0.002 s, but the parameters are per sample of 0.001 s" in capsys.readouterr().err

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.atomic import write_text_atomic
+from isp_twin.errors import DataError
 from isp_twin.identification import SIDES, Settings, identify, to_axis_params
 from isp_twin.identification_report import result_json, write_report
 from isp_twin.measured import DataMapping, load_data_description, load_measured, mapping_from_options
@@ -69,6 +69,12 @@ def execute(args) -> int:
     validation = [load_measured(p, mapping) for p in args.validate]
     prior_set = load_parameters(args.prior or default_parameters_path())
     prior = prior_set.axis(args.axis)
+    for d in train + validation:
+        if abs(d.dt - prior_set.sample_time_s) > 0.01 * prior_set.sample_time_s:
+            raise DataError(
+                f"{d.source}: sample period {d.dt:.6g} s, but the parameters are per sample of "
+                f"{prior_set.sample_time_s:.6g} s ({prior_set.path or prior_set.name}); resample the data"
+            )
     settings = Settings(
         seed=args.seed,
         generations=args.generations,
