@@ -70,3 +70,28 @@ def test_nfc_reduces_average_j_like_the_paper(name, table):
     assert result.relative_reduction_percent == pytest.approx(paper, abs=10.0)
     for variant in ("PI", "PI+NFC"):
         assert result.variants[variant].stats.best <= result.variants[variant].stats.worst
+
+
+def _campaign_like(table):
+    from isp_twin.campaign import CampaignResult, VariantResult
+
+    def variant(runs):
+        return VariantResult(campaign_stats(runs), (0.5,) * len(runs), (0.1,) * len(runs))
+
+    return CampaignResult("x", "p.yaml", "inner_az", tuple(range(10)),
+                          {"PI": variant(table.pi), "PI+NFC": variant(table.pi_nfc)})
+
+
+def test_report_says_met_when_the_twin_equals_the_paper_and_not_met_otherwise():
+    from isp_twin.campaign import Comparison, comparison_markdown
+    from isp_twin.paper import TABLE4_ACTUAL
+
+    same = {cell: campaign_stats([j, j]) for cell, j in TABLE4_ACTUAL.items()}
+    text = comparison_markdown(Comparison(same, _campaign_like(TABLE5), _campaign_like(TABLE6), 2))
+    assert "NOT met" not in text and text.count("within +-3 points: met") == 3
+    assert "- Every target is met." in text
+    off = dict(same)
+    off[(0.5, math.pi)] = campaign_stats([TABLE4_ACTUAL[(0.5, math.pi)] + 3.5] * 2)
+    text = comparison_markdown(Comparison(off, _campaign_like(TABLE5), _campaign_like(TABLE6), 2))
+    assert "within +-3 points: **NOT met**" in text
+    assert "validation target missed by +3.5 points" in text
