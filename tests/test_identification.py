@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,7 +23,7 @@ from isp_twin.identification import (
     to_axis_params,
 )
 from isp_twin.measured import save_measured
-from isp_twin.parameters import ParameterSet, load_parameters, save_parameters
+from isp_twin.parameters import AxisParams, ParameterSet, RegimeParams, load_parameters, save_parameters
 from isp_twin.units import DEG
 
 # Short test data: two of the paper-set variations at 1 Hz, 1000 samples
@@ -189,3 +190,21 @@ def test_identify_command_rejects_data_at_another_sample_rate(tmp_path, capsys):
                header="t,u,omega,theta", comments="")
     assert main(["identify", str(path), "--out", str(tmp_path / "p.yaml")]) == 2
     assert "slow.csv: sample period 0.002 s, but the parameters are per sample of 0.001 s" in capsys.readouterr().err
+
+
+def test_real_free_spinning_motor_with_the_side_fixed(tmp_path):
+    """The HSM150 excerpt (tests/data/README.md): torque in, spinning one way.
+
+    With the side fixed to R only R+ is visited; the other three regimes keep
+    the prior and are flagged, and the fit beats the prior.
+    """
+    from isp_twin.measured import load_measured, mapping_from_options
+
+    real = Path(__file__).parent / "data" / "hsm150_idf_pos_0.06_1_excerpt.mat"
+    d = load_measured(real, mapping_from_options(["t=data:0", "u=data:4", "omega=data:3*rad/s", "theta=data:2*rad"]))
+    base = RegimeParams(a=1 - 7.03e-5 * 1e-3 / 1.2e-4, b=1e-3 / 1.2e-4 / DEG, Ke=1.0, Ts=0.025, Tc=0.02, alpha=0.01)
+    prior = AxisParams(regimes=(base,) * 4)
+    res = identify([d], prior, Settings(side="right", generations=0, refine_evaluations=30))
+    assert res.regime_identified == (True, False, False, False)
+    assert res.cost < rmse(prior.rate_params(), [d], "right")
+    assert res.identifiable[5:].sum() == 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -263,3 +264,18 @@ def test_bad_data_description_names_the_key(tmp_path):
     desc.write_text("columns:\n  t: 0\n  omega: {colum: 3}\n")
     with pytest.raises(DataError, match=r"d\.yaml: columns\.omega\.colum: unknown key"):
         load_data_description(desc)
+
+
+REAL = Path(__file__).parent / "data" / "hsm150_idf_pos_0.06_1_excerpt.mat"  # see tests/data/README.md
+
+
+def test_real_hsm150_excerpt_loads_in_si():
+    m = mapping_from_options(["t=data:0", "u=data:4", "omega=data:3*rad/s", "theta=data:2*rad"])
+    d = load_measured(REAL, m)
+    assert len(d) == 600 and d.dt == pytest.approx(1e-3)
+    assert set(np.round(d.u, 6)) == {0.05, 0.06}  # README: torque step 0.05 -> 0.06 N·m at 10 s
+    assert d.t[np.argmax(d.u > 0.055)] == pytest.approx(10.0, abs=1.5e-3)
+    assert 100 < d.omega.min() and d.omega.max() < 250  # rad/s, as the README says (~200 rad/s)
+    assert (np.diff(d.angle) >= 0).all()  # free spinning, angle only grows
+    # The rate column agrees with the position column's derivative (both SI).
+    np.testing.assert_allclose(differentiate_angle(d.angle, d.dt)[50:-50].mean(), d.omega[50:-50].mean(), rtol=0.01)
