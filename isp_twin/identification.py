@@ -387,13 +387,13 @@ def _robust_to_storage(x: np.ndarray, cost, free: np.ndarray, b: np.ndarray, ste
     def cost_of(points_free: np.ndarray) -> np.ndarray:
         return np.atleast_1d(cost(points_free))
 
-    stored = stored_form(_embed(x, free, b), b)
+    stored = stored_form(_embed(x, free), b)
     exact = float(cost_of(x[None])[0])
     rounded = float(cost_of(stored[None][:, free])[0])
     if rounded <= 1.01 * exact + 1e-15:
         return stored[free], False
     deltas = np.vstack([np.diag(step * np.abs(x)), -np.diag(step * np.abs(x))])
-    cands = stored_form(np.array([_embed(x + dlt, free, b) for dlt in deltas]), b)[:, free]
+    cands = stored_form(np.array([_embed(x + dlt, free) for dlt in deltas]), b)[:, free]
     costs = cost_of(cands)
     best = int(np.argmin(costs))
     if costs[best] < rounded:
@@ -401,7 +401,7 @@ def _robust_to_storage(x: np.ndarray, cost, free: np.ndarray, b: np.ndarray, ste
     return stored[free], False
 
 
-def _embed(x_free: np.ndarray, free: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _embed(x_free: np.ndarray, free: np.ndarray) -> np.ndarray:
     """Free quantities into a (20,) vector (fixed ones: 1, never used after)."""
     out = np.ones(20)
     out[free] = x_free
@@ -423,7 +423,8 @@ def identify(
             regimes the data do not visit.
         settings: search budget, seed, regime rules.
         progress: called as ``progress(stage, step, best_cost_rad_s)`` with
-            stage "search" (per generation) or "refine".
+            stage "search" (per generation) or "refine" (per evaluation,
+            step = simulated parameter sets so far).
 
     Raises:
         DataError: no data, mixed sample periods, or no regime visited.
@@ -480,7 +481,7 @@ def identify(
                 progress("search", len(history), history[-1])
 
         de = differential_evolution(
-            lambda xt: batch_cost(xt),
+            batch_cost,
             list(zip(lo, hi)),
             maxiter=s.generations,
             init=init,
@@ -507,6 +508,8 @@ def identify(
         evaluations += pts.shape[0]
         e = residuals(full(pts), data, s.side, rest)
         cache.update(x=xf.copy(), e=e[0], j=((e[1:] - e[0]) / h[:, None]).T)
+        if progress is not None:
+            progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
 
     def resid(xf: np.ndarray) -> np.ndarray:
         evaluate(xf)
@@ -533,8 +536,6 @@ def identify(
         if ls.cost * 2 <= float(np.sum(resid(x_best) ** 2)):
             x_best = ls.x
         history.append(float(np.sqrt(2 * ls.cost / ls.fun.size)))
-        if progress is not None:
-            progress("refine", ls.nfev, history[-1])
         status += f"; least-squares refinement ({ls.nfev} evaluations, {ls.message.rstrip('.')})"
     b = np.array([r.b for r in prior.regimes])
     x_best, moved = _robust_to_storage(x_best, lambda xs: rmse(full(xs), data, s.side, rest), free, b)

@@ -89,7 +89,7 @@ def execute(args) -> int:
 
     def progress(stage: str, step: int, cost: float) -> None:
         if show:
-            label = "generation" if stage == "search" else "refinement, evaluations"
+            label = "generation" if stage == "search" else "refinement, simulated sets"
             print(f"\r{label} {step}: best RMS {cost / DEG:.5g} deg/s   ", end="", file=sys.stderr, flush=True)
 
     result = identify(train, prior, settings, progress)
