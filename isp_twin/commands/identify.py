@@ -89,8 +89,8 @@ def execute(args) -> int:
 
     def progress(stage: str, step: int, cost: float) -> None:
         if show:
-            label = "generation" if stage == "search" else "refinement, simulated sets"
-            print(f"\r{label} {step}: best RMS {cost / DEG:.5g} deg/s   ", end="", file=sys.stderr, flush=True)
+            label = "generation {}: best RMS" if stage == "search" else "refinement, {} simulated sets: RMS"
+            print(f"\r{label.format(step)} {cost / DEG:.5g} deg/s   ", end="", file=sys.stderr, flush=True)
 
     result = identify(train, prior, settings, progress)
     if show:
