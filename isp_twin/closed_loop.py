@@ -50,6 +50,12 @@ __all__ = ["DIVERGED_RATE", "table_angles", "build_rate_loop", "run_scenario"]
 #: the loop is unstable (absurd gains), not isolating.
 DIVERGED_RATE = 60.0 * DEG
 
+#: A loop whose command sits on its bound for this fraction of the time
+#: (exponential average over `SATURATION_SAMPLES`) is unstable, not working:
+#: in a working loop the command stays far inside its bound.
+SATURATION_LIMIT = 0.9
+SATURATION_SAMPLES = 500
+
 #: Progress is reported every this many samples.
 PROGRESS_EVERY = 500
 
@@ -173,6 +179,8 @@ def run_scenario(
     buf = np.zeros((n, len(columns) + len(joint_names)))
     command = [0.0, 0.0, 0.0, 0.0]
     row = [0.0] * buf.shape[1]
+    bounds = [0.999 * scenario.controller.axis(a).bound_digits for a in INNER_AXES]
+    saturated = [0.0, 0.0]
     interrupted = False
     done = 0
     try:
@@ -197,6 +205,13 @@ def run_scenario(
                 if u != u:
                     raise SimulationDiverged(
                         f"closed loop diverged at t={t[k]:.3f} s: {INNER_AXES[i]}/command is NaN"
+                    )
+                saturated[i] += ((abs(u) >= bounds[i]) - saturated[i]) / SATURATION_SAMPLES
+                if saturated[i] > SATURATION_LIMIT:
+                    raise SimulationDiverged(
+                        f"closed loop unstable at t={t[k]:.3f} s: {INNER_AXES[i]}/command has "
+                        f"been at its bound (+-{bounds[i] / 0.999:g} digits) "
+                        f"{100 * SATURATION_LIMIT:.0f} % of the time; check the controller gains"
                     )
                 command[i] = u
                 row[8 * i : 8 * i + 8] = (wc[i], w1[i], rate[i], gyros[i].to_rate(counts), u,

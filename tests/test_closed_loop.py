@@ -81,6 +81,13 @@ def test_absurd_gains_stop_with_the_time_and_signal_named():
         run_scenario(parse_scenario(raw, "absurd.yaml"))
 
 
+def test_a_loop_pinned_at_its_bound_stops_as_unstable():
+    raw = {**SHORT, "controller": {"inner_az": {"pi": {"kp_digit_per_count": 1000.0}}}}
+    with pytest.raises(SimulationDiverged,
+                       match=r"unstable at t=\d+\.\d+ s: inner_az/command has been at its bound"):
+        run_scenario(parse_scenario(raw, "absurd.yaml"))
+
+
 def test_ctrl_c_returns_the_partial_run_marked_interrupted():
     calls = []
 
