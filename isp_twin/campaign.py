@@ -15,6 +15,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 
 from isp_twin.closed_loop import run_scenario
+from isp_twin.errors import ScenarioError
 from isp_twin.metrics import CampaignStats, campaign_stats
 from isp_twin.paper import (
     TABLE4_ACTUAL,
@@ -113,9 +114,12 @@ def _mean(x: Sequence[float]) -> float:
 
 def _one_run(job: tuple[Scenario, ParameterSet | None, int, str]) -> tuple[float, float, float]:
     scenario, params, seed, axis = job
-    m = run_scenario(scenario, params=params, seed=seed).metrics[axis]
-    if m["isolation_percent"] is None:
-        raise ValueError(f"{scenario.name}: {axis} sees no carrier motion; J is undefined")
+    m = run_scenario(scenario, params=params, seed=seed).metrics.get(axis)
+    if m is None:
+        raise ScenarioError(
+            f"{scenario.source or scenario.name}: turntable: {axis} sees no carrier motion, "
+            "so its isolation J (Eq. 10) is undefined; choose the other axis"
+        )
     return m["isolation_percent"], m["max_abs_error_deg_s"], m["rms_error_deg_s"]
 
 

@@ -295,7 +295,8 @@ class Scenario:
     name: str = _f("", "short name (default: the file's stem)")
     description: str = _f("", "what the scenario reproduces")
     kind: Literal["closed_loop", "open_loop"] = _f("closed_loop", "experiment type")
-    duration_s: float = _f(10.0, "simulated time [s]", exclusive_min=0.0, max=3600.0)
+    # 600 s at 1 kHz is ~130 MB of recorded signals; longer runs are not a use case.
+    duration_s: float = _f(10.0, "simulated time [s]", exclusive_min=0.0, max=600.0)
     seed: int = _f(0, "noise seed", min=0)
     parameters: str = _f(
         "paper_table2",

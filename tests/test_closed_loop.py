@@ -134,8 +134,10 @@ def test_campaign_command_writes_the_table5_statistics_as_json(tmp_path, capsys)
     assert "NFC reduces the average J" in capsys.readouterr().out
 
 
-def test_campaign_command_rejects_an_open_loop_scenario(capsys):
+def test_campaign_command_rejects_an_open_loop_scenario_and_an_axis_without_j(capsys):
     from isp_twin.cli import main
 
     assert main(["campaign", "openloop_0_5Hz", "-n", "1"]) == 2
     assert "closed_loop" in capsys.readouterr().err
+    assert main(["campaign", "tracking_0_5Hz", "-n", "1", "--axis", "inner_el"]) == 2
+    assert "inner_el sees no carrier motion" in capsys.readouterr().err
