@@ -35,6 +35,9 @@ __all__ = [
 
 #: Name of the model without a new effect.
 BASELINE = "none"
+#: Positions of the four breakaway (static) parameters in the rate vector:
+#: scanned before the local refit (`fit.lm_steps`).
+STATIC_INDICES = (2, 7, 12, 17)
 
 
 @dataclass(frozen=True)
@@ -194,6 +197,7 @@ def fit_candidates(
                 np.concatenate([hi_r, hi_e]),
                 np.concatenate([sc_r, sc_e]),
                 max_iter=max_iter,
+                scan=STATIC_INDICES,
             )
         )
 

@@ -61,16 +61,40 @@ def lm_steps(
     max_iter: int = 8,
     rtol: float = 1e-3,
     rel_step: float = 1e-3,
+    scan: Sequence[int] = (),
+    scan_factors: Sequence[float] = (0.6, 0.7, 0.8, 0.9, 0.95, 1.05, 1.1, 1.2, 1.35, 1.5),
 ) -> Generator[np.ndarray, np.ndarray, FitResult]:
     """Levenberg-Marquardt as a generator: it yields the points it needs,
     shape (P, n), receives their residuals, shape (P, M), and returns the
-    `FitResult`. `solve` drives one; `solve_many` drives several in lockstep,
-    so one batched simulation serves every problem's iteration.
+    `FitResult`. `solve_many` drives several in lockstep, so one batched
+    simulation serves every problem's iteration.
+
+    Parameters listed in `scan` are first scanned one at a time over
+    ``x0 * scan_factors`` (the best of each kept, then checked together):
+    thresholds such as the breakaway torque change the cost in steps that a
+    finite difference does not see.
     """
     x = np.clip(np.asarray(x0, float), lower, upper)
     n = x.size
     r = (yield x[None])[0]
     sse = float(r @ r)
+    if len(scan):
+        factors = np.asarray(scan_factors, float)
+        pts = np.repeat(x[None], len(scan) * factors.size, axis=0)
+        for j, i in enumerate(scan):
+            pts[j * factors.size : (j + 1) * factors.size, i] = x[i] * factors
+        pts = np.clip(pts, lower, upper)
+        rs = yield pts
+        sses = np.einsum("ij,ij->i", rs, rs).reshape(len(scan), factors.size)
+        trial = x.copy()
+        for j, i in enumerate(scan):
+            k = int(np.argmin(sses[j]))
+            if sses[j, k] < sse:
+                trial[i] = pts[j * factors.size + k, i]
+        if np.any(trial != x):
+            rt = (yield trial[None])[0]
+            if float(rt @ rt) < sse:
+                x, r, sse = trial, rt, float(rt @ rt)
     lam = 1e-2
     log = []
     status = FitStatus.MAX_ITERATIONS

@@ -9,7 +9,7 @@ import numpy as np
 from isp_twin.atomic import atomic_path, write_text_atomic
 from isp_twin.diagnosis.candidates import BASELINE
 from isp_twin.diagnosis.search import Diagnosis
-from isp_twin.diagnosis.selection import BLOCK, MIN_GAIN, P_MAX, Z_MIN
+from isp_twin.diagnosis.selection import BLOCK, MIN_GAIN, Z_MIN
 from isp_twin.units import DEG
 
 __all__ = ["write_report", "write_recording", "residual_series"]
@@ -133,9 +133,9 @@ def write_report(diag: Diagnosis, path: Path, params_out: Path | None = None) ->
         f"| {_fmt(b.direction['+'])} / {_fmt(b.direction['-'])} |",
         f"| largest spectral peak [Hz] | {_fmt(a.peak_hz)} | {_fmt(b.peak_hz)} |",
         "",
-        f"Acceptance rule: held-out MSE improvement > {Z_MIN:g} block standard errors or a "
-        f"signed-rank p < {P_MAX:g} (blocks of {BLOCK} samples), > {MIN_GAIN:g} x noise "
-        "variance, and lower BIC.",
+        f"Acceptance rule: held-out MSE improvement > {Z_MIN:g} standard errors of its noise "
+        f"term (blocks of {BLOCK} samples), > {MIN_GAIN:g} x noise variance, and lower BIC "
+        "(docs/diagnosis.md).",
         "",
         f"![residuals]({png.name})",
         "",

@@ -277,7 +277,7 @@ def diagnose(
             judge(n, base_held, h, base.bic, fits[n].bic, floor) for n, h in zip(remaining, held_all[1:])
         ]
         verdicts.sort(key=lambda v: v.holdout_rmse)
-        best = select(verdicts)
+        best = select(verdicts, floor)
         selected = best.name if best else BASELINE
         after_held = held_all[1 + remaining.index(selected)] if best else base_held
         rounds.append(

@@ -83,6 +83,16 @@ def stack_runs(runs: Sequence, warmup: int = WARMUP) -> RunStack:
         angle[i, :m] = r.angle
         angle[i, m:] = r.angle[-1]
         mask[i, min(max(warmup, 1), m - 1) : m] = True
+    # The first measured rate is the initial state; a reading within three
+    # noise standard deviations of zero is rest (the stiction branch of
+    # Eq. 5), not a slow motion in the direction of the noise.
+    for i, r in enumerate(runs):
+        w = np.asarray(r.omega, float)
+        if w.size > 8:
+            d = np.diff(w[: min(w.size, 2000)], 2)
+            sigma = 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0)
+            if abs(w[0]) <= 3.0 * sigma:
+                omega[i, 0] = 0.0
     return RunStack(tuple(r.name for r in runs), u, omega, angle, mask, dt)
 
 

@@ -81,7 +81,7 @@ def make_run(
     rng: np.random.Generator,
     effects: Sequence[EffectSpec] = (),
     noise_rad_s: float = 0.003,
-    angle_noise_rad: float = 2e-5,
+    angle_lsb_rad: float = 2 * np.pi / 2**20,
     angle0: float = 0.0,
 ) -> MeasuredData:
     """Simulate one run of the fast model with `effects` and add sensor noise.
@@ -94,7 +94,8 @@ def make_run(
         rng: noise source.
         effects: the true extra effects.
         noise_rad_s: gyro white-noise standard deviation [rad/s].
-        angle_noise_rad: angle-sensor white-noise standard deviation [rad].
+        angle_lsb_rad: angle-sensor resolution [rad] (a 20-bit encoder by
+            default): the angle is rounded to it.
         angle0: initial angle [rad].
     """
     resp = simulate(rate, u, dt, angle0=angle0, effects=[make_effect(e, dt) for e in effects])
@@ -104,7 +105,7 @@ def make_run(
         t=np.arange(n) * dt,
         u=np.asarray(u, float),
         omega=resp.omega + rng.normal(0.0, noise_rad_s, n),
-        angle=resp.angle + rng.normal(0.0, angle_noise_rad, n),
+        angle=np.round(resp.angle / angle_lsb_rad) * angle_lsb_rad if angle_lsb_rad > 0 else resp.angle,
         source=None,
         dt=dt,
     )

@@ -30,21 +30,24 @@ class InputDelay(Effect):
         self._frac = steps - self._whole
         self._hist = None
         self._length = int(np.max(self._whole)) + 2
+        self._k = 0
 
     def command(self, u):
         u = np.asarray(u, dtype=float)
         if self._hist is None:
             shape = np.broadcast_shapes(u.shape, self._whole.shape)
             self._hist = np.broadcast_to(u, (self._length,) + shape).copy()
-        # Newest first: _hist[i] is the command i samples ago.
-        self._hist[1:] = self._hist[:-1]
-        self._hist[0] = u
+            self._cols = np.arange(shape[0]) if len(shape) == 1 else None
+        # Ring buffer: row k % length holds the command of sample k.
+        n = self._length
+        self._hist[self._k % n] = u
         if self._hist.ndim == 1:
-            now, before = self._hist[self._whole], self._hist[self._whole + 1]
+            now = self._hist[(self._k - self._whole) % n]
+            before = self._hist[(self._k - self._whole - 1) % n]
         else:
-            cols = np.arange(self._hist.shape[1])
-            now = self._hist[self._whole, cols]
-            before = self._hist[self._whole + 1, cols]
+            now = self._hist[(self._k - self._whole) % n, self._cols]
+            before = self._hist[(self._k - self._whole - 1) % n, self._cols]
+        self._k += 1
         return (1.0 - self._frac) * now + self._frac * before
 
     @classmethod

@@ -47,9 +47,9 @@ class LuGre(Effect):
 
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
-        """A grid: bristle force 5 to 40 rad/s^2, pre-sliding 0.5 to 10 mrad."""
+        """A grid: bristle force 4 to 40 rad/s^2, pre-sliding 0.3 to 20 mrad (geometric)."""
         return [
-            {"accel_rad_s2": a, "presliding_rad": z}
-            for a in (5.0, 15.0, 40.0)
-            for z in (5e-4, 2e-3, 1e-2)
+            {"accel_rad_s2": float(a), "presliding_rad": float(z)}
+            for a in np.geomspace(4.0, 40.0, 5)
+            for z in np.geomspace(3e-4, 2e-2, 10)
         ]

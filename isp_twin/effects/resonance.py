@@ -9,25 +9,41 @@ The mode rings after every change of acceleration (breakaway, steps).
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import expm
 
 from isp_twin.effects import Effect, register
 
 
 def _discretize(freq_hz, damping_ratio, coupling, dt):
-    """Zero-order-hold transition matrices, shapes (..., 2, 2) and (..., 2)."""
+    """Zero-order-hold transition matrices, shapes (..., 2, 2) and (..., 2).
+
+    Closed form of expm(A*dt) for the 2x2 mode (Sylvester's formula with the
+    two eigenvalues) and ``Gamma = A^-1 (Phi - I) B``, vectorized over sets.
+    """
     freq, zeta, gain = np.broadcast_arrays(
         *(np.asarray(x, dtype=float) for x in (freq_hz, damping_ratio, coupling))
     )
     wn = 2.0 * np.pi * freq
-    aug = np.zeros(freq.shape + (3, 3))
-    aug[..., 0, 1] = 1.0
-    aug[..., 1, 0] = -wn * wn
-    aug[..., 1, 1] = -2.0 * zeta * wn
-    aug[..., 1, 2] = -gain
-    e = expm(aug * dt)  # batched over the leading axes
-    phi = e[..., :2, :2]
-    gamma = e[..., :2, 2]
+    # Repeated roots (zeta = 1) make the formula 0/0: nudge them apart.
+    zeta = np.where(np.abs(zeta - 1.0) < 1e-6, 1.0 + 1e-6, zeta)
+    root = np.sqrt((zeta * zeta - 1.0).astype(complex))
+    l1 = wn * (-zeta + root)
+    l2 = wn * (-zeta - root)
+    e1, e2 = np.exp(l1 * dt), np.exp(l2 * dt)
+    c0 = ((l1 * e2 - l2 * e1) / (l1 - l2)).real
+    c1 = ((e1 - e2) / (l1 - l2)).real
+    a = np.zeros(freq.shape + (2, 2))
+    a[..., 0, 1] = 1.0
+    a[..., 1, 0] = -wn * wn
+    a[..., 1, 1] = -2.0 * zeta * wn
+    phi = c0[..., None, None] * np.eye(2) + c1[..., None, None] * a
+    # Gamma = A^-1 (Phi - I) B with B = (0, -coupling); det A = wn^2.
+    m = phi - np.eye(2)
+    inv = np.zeros_like(a)
+    inv[..., 0, 0] = a[..., 1, 1]
+    inv[..., 0, 1] = -1.0
+    inv[..., 1, 0] = wn * wn
+    inv = inv / (wn * wn)[..., None, None]
+    gamma = np.einsum("...ij,...j->...i", inv @ m, np.stack([np.zeros_like(gain), -gain], axis=-1))
     return phi, gamma
 
 

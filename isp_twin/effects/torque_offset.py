@@ -20,12 +20,11 @@ class TorqueOffset(Effect):
     #: Parameters that make the effect do nothing.
     null = {"accel_rad_s2": 0.0}
     bounds = {"accel_rad_s2": (-200.0, 200.0)}
-    #: Exactly equivalent to shifting Ts and Tc of the + regimes down and of
-    #: the - regimes up (Eq. 5 has them per direction): rate data cannot tell
-    #: it from friction, so it keeps the value the current model's residual
-    #: shows and the refit is of the friction around it (the diagnosis then
-    #: finds no gain over the plain refit; see docs/diagnosis.md).
-    frozen = ("accel_rad_s2",)
+    # Exactly equivalent to shifting Ts and Tc of the + regimes down and of
+    # the - regimes up (Eq. 5 has them per direction): only the local refit
+    # from the current friction values makes it identifiable (the damped
+    # Gauss-Newton step moves along that degenerate direction as little as
+    # it can); see docs/diagnosis.md.
 
     def acceleration(self, angle, rate):
         return self.params["accel_rad_s2"] + 0.0 * np.asarray(angle)
