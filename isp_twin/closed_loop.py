@@ -117,8 +117,9 @@ def run_scenario(
             i.e. a perfectly identified plant).
 
     Returns:
-        The `RunResult` with metrics (see `isp_twin.metrics`); on Ctrl-C the
-        partial result with ``interrupted=True``.
+        The `RunResult` with metrics (see `isp_twin.metrics`, computed from
+        every sample) and the series decimated by ``record.decimation``; on
+        Ctrl-C the partial result with ``interrupted=True``.
 
     Raises:
         ScenarioError: the scenario is not a closed-loop one.
@@ -246,6 +247,12 @@ def run_scenario(
     }
     t = t[:done]
     metrics = run_metrics(t, signals, scenario.skip_s)
+    step = scenario.record.decimation
+    if step > 1:
+        # The metrics above saw every sample; the record keeps every n-th.
+        t = t[::step]
+        signals = {k: v[::step] for k, v in signals.items()}
+        joint_angles = {k: v[::step] for k, v in joint_angles.items()}
     return RunResult(
         scenario=scenario.name,
         scenario_text=scenario.text,

@@ -261,7 +261,10 @@ class Metrics:
 class Record:
     """Recording options."""
 
-    decimation: int = _f(1, "record every n-th sample", min=1, max=1000)
+    decimation: int = _f(
+        1, "keep every n-th sample in the run's record (metrics use every sample)",
+        min=1, max=1000,
+    )
 
 
 @dataclass(frozen=True)

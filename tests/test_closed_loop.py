@@ -74,6 +74,14 @@ def test_same_seed_same_numbers_other_seed_other_numbers():
     assert not np.array_equal(a.signals["inner_az/gyro"], c.signals["inner_az/gyro"])
 
 
+def test_decimation_thins_the_record_but_not_the_metrics(short_run):
+    raw = {**SHORT, "record": {"decimation": 10}}
+    thin = run_scenario(parse_scenario(raw, "short.yaml"))
+    assert thin.metrics == short_run.metrics
+    assert len(thin.t) == 251 and thin.t[1] == pytest.approx(0.01)
+    assert np.array_equal(thin.signals["inner_az/command"], short_run.signals["inner_az/command"][::10])
+
+
 def test_absurd_gains_stop_with_the_time_and_signal_named():
     raw = {**SHORT, "controller": {"inner_az": {"pi": {"kp_digit_per_count": 1e6},
                                                "bound_digits": 1e9}}}
