@@ -155,7 +155,7 @@ def _plot(result: IdentificationResult, d: MeasuredData, path: Path, title: str)
     ax1.legend(loc="best")
     ax1.set_title(title)
     ax2.plot(d.t, (d.omega - model) / DEG, lw=0.6, color="C3")
-    ax2.set_ylabel("error [deg/s]")
+    ax2.set_ylabel("measured - model [deg/s]")
     ax2.set_xlabel("t [s]")
     fig.tight_layout()
     with atomic_path(path) as tmp:
@@ -208,13 +208,14 @@ def write_report(
         "",
         "## Table 3: RMS rate error [deg/s]",
         "",
-        "| set | role | RMS error [deg/s] |",
-        "|---|---|---|",
+        "| set | role | RMS error [deg/s] | [rad/s] |",
+        "|---|---|---|---|",
     ]
     for d in train:
-        lines.append(f"| {d.name} | identification | {result.rmse_train[d.name] / DEG:.4g} |")
+        v = result.rmse_train[d.name]
+        lines.append(f"| {d.name} | identification | {v / DEG:.4g} | {v:.4g} |")
     for name, v in rmse_table(result, validation).items():
-        lines.append(f"| {name} | validation | {v:.4g} |")
+        lines.append(f"| {name} | validation | {v:.4g} | {v * DEG:.4g} |")
     lines += ["", "## Measured vs model rate (Fig. 4)", ""]
     for role, sets in (("identification", train), ("validation", validation)):
         for d in sets:
