@@ -50,6 +50,6 @@ class LuGre(Effect):
         """A grid: bristle force 4 to 40 rad/s^2, pre-sliding 0.3 to 20 mrad (geometric)."""
         return [
             {"accel_rad_s2": float(a), "presliding_rad": float(z)}
-            for a in np.geomspace(4.0, 40.0, 5)
-            for z in np.geomspace(3e-4, 2e-2, 10)
+            for a in np.geomspace(4.0, 40.0, 10)
+            for z in np.geomspace(3e-4, 2e-2, 14)
         ]
