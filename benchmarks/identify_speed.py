@@ -6,7 +6,7 @@ quantities (b is fixed to the prior, see `isp_twin.identification`), for
 noise-free data and for realistic sensor noise (0.02 deg/s gyro, 16-bit
 resolver). The search starts from a prior that is 20-40 % off.
 
-    python benchmarks/identify_speed.py [--generations N] [--population N]
+    python benchmarks/identify_speed.py [--generations N] [--population N] [--coverage N]
 
 Target (issue 4): at most 20 s on the 2-core machine.
 """
@@ -39,6 +39,8 @@ def main() -> None:
     parser.add_argument("--generations", type=int, default=Settings.generations)
     parser.add_argument("--population", type=int, default=Settings.population)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--coverage", type=int, default=0, metavar="N",
+                        help="also count, over N noise seeds, how often the truth is inside the 95 %% CI")
     args = parser.parse_args()
     params = load_parameters(default_parameters_path())
     truth = params.axis("inner_az")
@@ -57,6 +59,15 @@ def main() -> None:
             f"(median {100 * np.median(rel):.3f} %), truth inside 95 % CI: {inside.sum()}/{inside.size}"
         )
         print(f"{'':16s}  {res.status}")
+    if args.coverage:
+        inside = []
+        for seed in range(args.seed + 1, args.seed + 1 + args.coverage):
+            data = generate_set(params, "inner_az", gyro_noise_deg_s=GYRO_NOISE_DEG_S,
+                                resolver_lsb_deg=RESOLVER_LSB_DEG, seed=100 * seed)
+            res = identify(data, wrong_prior(truth), dataclasses.replace(settings, seed=seed))
+            inside.extend((np.abs(res.vector - x_true) <= res.ci95)[res.identifiable])
+        print(f"coverage over {args.coverage} noise seeds: truth inside the 95 % CI for "
+              f"{sum(inside)}/{len(inside)} = {100 * np.mean(inside):.1f} % of the identifiable quantities")
 
 
 if __name__ == "__main__":
