@@ -72,6 +72,7 @@ def simulate(
     angle_limit: float | None = None,
     extra_rate: np.ndarray | None = None,
     effects: Sequence[Effect] = (),
+    side: float | None = None,
 ) -> AxisResponse:
     """Simulate Eq. 6 for a batch of parameter sets.
 
@@ -92,6 +93,9 @@ def simulate(
         effects: extra effects (reset here, then stepped); their parameters
             are floats or arrays of shape (P,) matching the batch
             (`isp_twin.effects.batched.make_batched`).
+        side: fix the half-plane for the regime choice (> 0: R, <= 0: L)
+            whatever the angle (a freely spinning motor, where the paper's
+            split means nothing); the effects still see the angle.
 
     Returns:
         `AxisResponse`; shapes (N,) for unbatched params, else (P, N).
@@ -147,6 +151,7 @@ def simulate(
     a_flat = np.clip(table[:, 0], 1e-12, 1.0 - 1e-12)
     hold = (1.0 - a_flat) / -np.log(a_flat) * dt
     base = rows * 4
+    fixed_side = None if side is None else float(side)
     for k in range(1, n):
         side_angle = y if angle_measured is None else angle_measured[k - 1]
         uk = u[k - 1]
@@ -155,7 +160,7 @@ def simulate(
         more = None if extra is None else extra[:, k - 1]
         acc = sum(e.acceleration(side_angle, w) for e in torques) if torques else None
         # Regime index as `regime_index`: 2*(angle <= 0) + (direction < 0).
-        side = base + 2 * (side_angle <= 0.0)
+        side = base + 2 * ((side_angle if fixed_side is None else fixed_side) <= 0.0)
         moving = w != 0.0
         # At rest the drive's sign picks the direction; gains are positive, so
         # the + regime of the current side decides it (exact without extra_rate).

@@ -39,6 +39,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--describe", type=Path, default=None, help="YAML data description (instead of --map)")
     p.add_argument("--candidates", default=None, metavar="A,B,...",
                    help="comma-separated effects to test (default: the whole library)")
+    p.add_argument("--side", default="measured", choices=("measured", "right", "left"),
+                   help="half-plane of the regimes: from the measured angle (the paper's rule), "
+                   "or fixed (a freely spinning motor)")
     p.add_argument("--max-rounds", type=int, default=2, help="at most this many effects are added")
     p.add_argument("--iterations", type=int, default=6, help="Levenberg-Marquardt iterations per refit")
     p.add_argument("--json", type=Path, default=None, metavar="PATH", help="write the result as JSON")
@@ -81,6 +84,7 @@ def execute(args: argparse.Namespace) -> int:
         candidates=candidates,
         max_rounds=args.max_rounds,
         max_iter=args.iterations,
+        side=args.side,
     )
     result = diag.to_json()
 

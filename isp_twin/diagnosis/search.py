@@ -23,7 +23,8 @@ from isp_twin.diagnosis.candidates import (
 )
 from isp_twin.diagnosis.residual import ResidualAnalysis, analyse, noise_floor, residual_context
 from isp_twin.diagnosis.selection import Verdict, judge, select
-from isp_twin.diagnosis.simulation import RunStack, predict, stack_runs
+from isp_twin.diagnosis.simulation import RunStack, predict
+from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.effects import EFFECTS
 from isp_twin.errors import DataError, ParameterError, nearest
 from isp_twin.measured import MeasuredData
@@ -172,12 +173,12 @@ def split_in_time(run) -> tuple[MeasuredData, MeasuredData]:
     return parts[0], parts[1]
 
 
-def _cv_residuals(runs, fits: Sequence[CandidateFit], max_iter: int) -> list[list[np.ndarray]]:
+def _cv_residuals(runs, fits: Sequence[CandidateFit], max_iter: int, side=None) -> list[list[np.ndarray]]:
     """Leave-one-run-out residuals of each fit; every fold refits all of them
     in lockstep, warm-started from their all-run fits."""
     out: list[list[np.ndarray]] = [[] for _ in fits]
     for k in range(len(runs)):
-        train = stack_runs([r for i, r in enumerate(runs) if i != k])
+        train = _stack_runs([r for i, r in enumerate(runs) if i != k], side=side)
         folds = fit_candidates(
             train,
             fits[0].rate_vector,
@@ -187,7 +188,7 @@ def _cv_residuals(runs, fits: Sequence[CandidateFit], max_iter: int) -> list[lis
             max_iter=max_iter,
             rate_starts={f.name: f.rate_vector for f in fits},
         )
-        held = holdout_residuals(stack_runs([runs[k]]), [folds[f.name] for f in fits])
+        held = holdout_residuals(_stack_runs([runs[k]], side=side), [folds[f.name] for f in fits])
         for i, parts in enumerate(held):
             out[i].extend(parts)
     return out
@@ -202,6 +203,7 @@ def diagnose(
     max_rounds: int = 2,
     max_iter: int = 6,
     cv_iter: int = 2,
+    side: str = "measured",
 ) -> Diagnosis:
     """Diagnose what the model of one axis misses in measured open-loop runs.
 
@@ -217,6 +219,9 @@ def diagnose(
         max_rounds: at most this many effects are added.
         max_iter: Levenberg-Marquardt iterations per fit.
         cv_iter: iterations per cross-validation fold (warm-started).
+        side: half-plane of the regimes: ``measured`` (sign of the measured
+            angle, the paper's rule), ``right`` or ``left`` (fixed: a motor
+            that spins freely, where the split means nothing).
 
     Raises:
         DataError: no runs, or a sample period that differs from the set's.
@@ -224,6 +229,14 @@ def diagnose(
     """
     runs = list(runs)
     holdout = list(holdout)
+    sides = {"measured": None, "right": 1.0, "left": -1.0}
+    if side not in sides:
+        raise ParameterError(f"diagnose: side '{side}'{nearest(side, sides)}; allowed: {', '.join(sides)}")
+    fixed_side = sides[side]
+
+    def stack_runs(rs):
+        return _stack_runs(rs, side=fixed_side)
+
     if not runs:
         raise DataError("diagnose: no data sets given")
     ax: AxisParams = params.axis(axis)
@@ -250,7 +263,7 @@ def diagnose(
     def held_residuals(fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
         if held is not None:
             return holdout_residuals(held, fits)
-        return _cv_residuals(runs, fits, cv_iter)
+        return _cv_residuals(runs, fits, cv_iter, fixed_side)
 
     x_file = ax.rate_params().to_vector()
     fixed = tuple(ax.effects)

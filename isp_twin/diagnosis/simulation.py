@@ -31,6 +31,9 @@ class RunStack:
         angle: measured angle [rad].
         mask: True on samples that count (not sample 0, not padding).
         dt: sample period [s].
+        side: None to pick the half-plane from the measured angle (the
+            paper's rule), else a fixed side (+1: R, -1: L) for a freely
+            spinning motor.
     """
 
     names: tuple[str, ...]
@@ -39,6 +42,7 @@ class RunStack:
     angle: np.ndarray
     mask: np.ndarray
     dt: float
+    side: float | None = None
 
     @property
     def n_samples(self) -> int:
@@ -56,7 +60,7 @@ class RunStack:
 WARMUP = 50
 
 
-def stack_runs(runs: Sequence, warmup: int = WARMUP) -> RunStack:
+def stack_runs(runs: Sequence, warmup: int = WARMUP, side: float | None = None) -> RunStack:
     """Stack runs (`isp_twin.measured.MeasuredData` or anything with
     ``name, u, omega, angle, dt``).
 
@@ -93,7 +97,7 @@ def stack_runs(runs: Sequence, warmup: int = WARMUP) -> RunStack:
             sigma = 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0)
             if abs(w[0]) <= 3.0 * sigma:
                 omega[i, 0] = 0.0
-    return RunStack(tuple(r.name for r in runs), u, omega, angle, mask, dt)
+    return RunStack(tuple(r.name for r in runs), u, omega, angle, mask, dt, side)
 
 
 def predict(
@@ -129,6 +133,7 @@ def predict(
         angle0=np.tile(stack.angle[:, 0], p),
         angle_measured=np.tile(stack.angle, (p, 1)),
         effects=batch,
+        side=stack.side,
     )
     if not np.all(np.isfinite(resp.omega)):
         # A diverging variant is a bad parameter set, not an error: make it lose.
