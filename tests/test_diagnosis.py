@@ -117,3 +117,15 @@ def test_analysis_sees_white_residual_for_the_true_model_and_structure_otherwise
     assert abs(b.acf[0]) < 0.1
     assert b.acf_outside < a.acf_outside
     assert b.rms == pytest.approx(0.002, rel=0.1)
+
+
+def test_a_fixed_side_picks_the_regimes_as_a_positive_angle_would(rate):
+    from isp_twin.axis_model import simulate
+
+    rng = np.random.default_rng(6)
+    u = excitation(rng, 800, DT)
+    angle = np.linspace(-0.3, 0.3, 800)
+    fixed = simulate(rate, u, DT, angle_measured=angle, side=1.0)
+    positive = simulate(rate, u, DT, angle_measured=np.abs(angle) + 1.0)
+    np.testing.assert_array_equal(fixed.omega, positive.omega)
+    assert set(np.unique(fixed.regime[1:])) <= {0, 1}
