@@ -208,3 +208,23 @@ def test_real_free_spinning_motor_with_the_side_fixed(tmp_path):
     assert res.regime_identified == (True, False, False, False)
     assert res.cost < rmse(prior.rate_params(), [d], "right")
     assert res.identifiable[5:].sum() == 0
+
+
+def test_identify_command_reads_mat_through_a_data_description(tmp_path):
+    real = Path(__file__).parent / "data" / "hsm150_idf_pos_0.06_1_excerpt.mat"
+    desc = tmp_path / "hsm150.yaml"
+    desc.write_text(
+        "variable: data\n"
+        "columns:\n"
+        "  t: 0\n"
+        "  u: 4\n"
+        "  omega: {column: 3, unit: rad/s}\n"
+        "  theta: {column: 2, unit: rad}\n"
+    )
+    out, js = tmp_path / "p.yaml", tmp_path / "p.json"
+    argv = ["identify", str(real), "--describe", str(desc), "--side", "right", "--out", str(out),
+            "--json", str(js), "--generations", "0", "--refine-evaluations", "5", "--no-report", "--quiet"]
+    assert main(argv) == 0
+    summary = json.loads(js.read_text())
+    assert summary["regime_identified"] == {"R+": True, "R-": False, "L+": False, "L-": False}
+    assert load_parameters(out).axis("inner_az").identified == (True, False, False, False)
