@@ -15,6 +15,7 @@ out in N·m and Ke != 1 means the effective inertia differs from the
 catalogue (J_eff = J/Ke). a = 1 - B·T/J from the catalogue viscous B.
 
     python benchmarks/identify_hsm150.py [--out DIR] [--generations N] [--population N]
+        [--refine-evaluations N]
 
 Prints the command it runs, the fit (RMS per run) and a residual summary;
 the report (Table 2, Table 3, Fig. 4 PNGs) is in DIR.
@@ -57,15 +58,17 @@ def prior() -> ParameterSet:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("hsm150_identification"))
-    parser.add_argument("--generations", type=int, default=10)
+    parser.add_argument("--generations", type=int, default=15)
     parser.add_argument("--population", type=int, default=30)
+    parser.add_argument("--refine-evaluations", type=int, default=60)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     prior_path = save_parameters(prior(), args.out / "hsm150_prior.yaml")
     files = lambda names: [str(DATA / f"{n}.mat") for n in names]  # noqa: E731
     argv = ["identify", *files(TRAIN), "--validate", *files(VALIDATE), "--out", str(args.out / "hsm150.yaml"),
             "--prior", str(prior_path), "--side", "right", "--json", str(args.out / "hsm150.json"),
-            "--generations", str(args.generations), "--population", str(args.population)]
+            "--generations", str(args.generations), "--population", str(args.population),
+            "--refine-evaluations", str(args.refine_evaluations)]
     for m in MAP:
         argv += ["--map", m]
     print("isp-twin " + " ".join(argv))
