@@ -102,7 +102,8 @@ class ColumnSpec:
 
     Attributes:
         source: a CSV column name, a ``.mat`` variable name, or a column index
-            (int) into the mapping's ``.mat`` matrix variable.
+            (int) into the mapping's ``.mat`` matrix variable (or a CSV
+            column index).
         scale: factor from the file's values to the canonical unit
             (t s, u unchanged unit, omega deg/s, theta deg).
     """
@@ -117,7 +118,8 @@ class DataMapping:
 
     Attributes:
         columns: canonical name (`SIGNALS`) -> `ColumnSpec`; ``t`` and ``u``
-            are required, at least one of ``omega`` and ``theta``.
+            are required, at least one of ``omega`` and ``theta``. Empty:
+            the canonical CSV columns (only `initial_angle_deg` is used).
         variable: for ``.mat`` files, the matrix variable that integer column
             indices refer to.
         initial_angle_deg: angle at the first sample [deg] when theta is derived.
@@ -340,7 +342,7 @@ def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
 def _csv_columns(path: Path, mapping: DataMapping | None) -> tuple[dict[str, np.ndarray], dict[str, str], int]:
     """Canonical signals (canonical units) from a CSV, their names, the header offset."""
     header, table = _read_csv(path)
-    if mapping is None:
+    if mapping is None or not mapping.columns:
         mapping = DataMapping(
             columns={s: ColumnSpec(s) for s in SIGNALS if s in header}, origin="canonical columns"
         )
@@ -480,7 +482,7 @@ def load_measured(path: str | Path, mapping: DataMapping | None = None) -> Measu
     path = Path(path)
     if not path.is_file():
         raise ResourceNotFound(f"{path}: data file not found")
-    if mapping is not None:
+    if mapping is not None and mapping.columns:
         for s in ("t", "u"):
             if s not in mapping.columns:
                 raise DataError(f"{path}: {mapping.origin}: no source for '{s}' (needs t, u and omega and/or theta)")

@@ -12,6 +12,7 @@ from scipy.io import savemat
 from isp_twin.errors import DataError, ResourceNotFound
 from isp_twin.measured import (
     MIN_SAMPLES,
+    DataMapping,
     MeasuredData,
     differentiate_angle,
     integrate_rate,
@@ -108,6 +109,8 @@ def test_rate_only_data_integrates_the_angle(tmp_path):
     d = load_measured(path)
     np.testing.assert_allclose(d.angle, integrate_rate(w * DEG, DT, 0.0), rtol=1e-9, atol=1e-15)
     assert d.angle[0] == 0.0
+    shifted = load_measured(path, DataMapping(initial_angle_deg=2.0))
+    np.testing.assert_allclose(shifted.angle - d.angle, 2.0 * DEG, rtol=1e-12)
     # The model's rule: y[k] - y[k-1] = dt * omega[k].
     np.testing.assert_allclose(np.diff(d.angle), DT * d.omega[1:], rtol=1e-9, atol=1e-15)
 

@@ -37,6 +37,8 @@ def add_parser(sub) -> None:
     p.add_argument("--map", action="append", default=[], metavar="KEY=SOURCE[*SCALE]",
                    help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad")
     p.add_argument("--describe", type=Path, default=None, help="YAML data description (instead of --map)")
+    p.add_argument("--initial-angle", type=float, default=0.0, metavar="DEG",
+                   help="angle at the first sample [deg] for rate-only data (the angle is integrated)")
     p.add_argument("--side", default="measured", choices=SIDES,
                    help="half-plane source: measured (angle fused with rate), raw, wrap, right, left")
     p.add_argument("--seed", type=int, default=0)
@@ -59,7 +61,9 @@ def _mapping(args) -> DataMapping | None:
     if args.describe is not None:
         return load_data_description(args.describe)
     if args.map:
-        return mapping_from_options(args.map)
+        return mapping_from_options(args.map, initial_angle_deg=args.initial_angle)
+    if args.initial_angle:
+        return DataMapping(initial_angle_deg=args.initial_angle)
     return None
 
 
