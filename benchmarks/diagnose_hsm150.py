@@ -45,10 +45,25 @@ def main() -> None:
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     params = args.params or _prior(args.out)
-    files = lambda names: [str(DATA / f"{n}.mat") for n in names]  # noqa: E731
-    argv = ["diagnose", *files(args.train), "--holdout", *files(args.holdout), "--params", str(params),
-            "--side", "right", "--max-rounds", str(args.max_rounds), "--out", str(args.out / "hsm150_diagnosed.yaml"),
-            "--report", str(args.out), "--json", str(args.out / "hsm150_diagnosis.json")]
+    files = lambda names: [str(DATA / f"{n}.mat") for n in names]
+    argv = [
+        "diagnose",
+        *files(args.train),
+        "--holdout",
+        *files(args.holdout),
+        "--params",
+        str(params),
+        "--side",
+        "right",
+        "--max-rounds",
+        str(args.max_rounds),
+        "--out",
+        str(args.out / "hsm150_diagnosed.yaml"),
+        "--report",
+        str(args.out),
+        "--json",
+        str(args.out / "hsm150_diagnosis.json"),
+    ]
     for m in MAP:
         argv += ["--map", m]
     print("isp-twin " + " ".join(argv))

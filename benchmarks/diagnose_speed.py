@@ -33,9 +33,15 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     us = [excitation(rng, args.samples, 1e-3) for _ in range(3)]
     effect = random_effect(args.effect, rng, us[0])
-    runs = [make_run(f"run{i}", rate, u, 1e-3, rng, [effect], 0.003, angle0=rng.uniform(-0.2, 0.2)) for i, u in enumerate(us)]
+    runs = [
+        make_run(f"run{i}", rate, u, 1e-3, rng, [effect], 0.003, angle0=rng.uniform(-0.2, 0.2))
+        for i, u in enumerate(us)
+    ]
     print(f"truth: {effect.name} {effect.params}")
-    for label, train, held in (("2 train + 1 held out", runs[:2], runs[2:]), ("3 train, cross-validation", runs, [])):
+    for label, train, held in (
+        ("2 train + 1 held out", runs[:2], runs[2:]),
+        ("3 train, cross-validation", runs, []),
+    ):
         t0 = time.perf_counter()
         diag = diagnose(train, params, "inner_az", held, max_rounds=args.rounds)
         wall = time.perf_counter() - t0

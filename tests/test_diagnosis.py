@@ -43,8 +43,13 @@ def test_levenberg_marquardt_solves_a_nonlinear_least_squares_problem_with_known
 
     y = model(truth[None])[0]
     fit = levenberg_marquardt(
-        lambda x: model(x) - y, np.array([1.0, 1.0, 0.0]), np.full(3, -10.0), np.full(3, 10.0), np.ones(3),
-        max_iter=50, rtol=1e-12,
+        lambda x: model(x) - y,
+        np.array([1.0, 1.0, 0.0]),
+        np.full(3, -10.0),
+        np.full(3, 10.0),
+        np.ones(3),
+        max_iter=50,
+        rtol=1e-12,
     )
     np.testing.assert_allclose(fit.x, truth, rtol=1e-5)
     assert fit.sse < 1e-12
@@ -52,7 +57,12 @@ def test_levenberg_marquardt_solves_a_nonlinear_least_squares_problem_with_known
 
 def test_levenberg_marquardt_respects_bounds():
     fit = levenberg_marquardt(
-        lambda x: x - 5.0, np.array([0.0]), np.array([-1.0]), np.array([2.0]), np.ones(1), max_iter=20
+        lambda x: x - 5.0,
+        np.array([0.0]),
+        np.array([-1.0]),
+        np.array([2.0]),
+        np.ones(1),
+        max_iter=20,
     )
     assert fit.x[0] == pytest.approx(2.0)
 
@@ -70,8 +80,12 @@ def test_judge_rejects_a_null_change_and_accepts_a_clear_gain():
 
 
 def test_stack_runs_refuses_mixed_sample_periods():
-    a = MeasuredData("a", np.arange(100) * 1e-3, np.zeros(100), np.zeros(100), np.zeros(100), None, 1e-3)
-    b = MeasuredData("b", np.arange(100) * 2e-3, np.zeros(100), np.zeros(100), np.zeros(100), None, 2e-3)
+    a = MeasuredData(
+        "a", np.arange(100) * 1e-3, np.zeros(100), np.zeros(100), np.zeros(100), None, 1e-3
+    )
+    b = MeasuredData(
+        "b", np.arange(100) * 2e-3, np.zeros(100), np.zeros(100), np.zeros(100), None, 2e-3
+    )
     with pytest.raises(DataError, match="b: sample period"):
         stack_runs([a, b])
 
@@ -80,18 +94,25 @@ def test_predict_on_a_stack_equals_one_simulation_per_run(rate):
     from isp_twin.axis_model import simulate
 
     rng = np.random.default_rng(1)
-    runs = [make_run(f"r{i}", rate, excitation(rng, n, DT), DT, rng) for i, n in enumerate((700, 500))]
+    runs = [
+        make_run(f"r{i}", rate, excitation(rng, n, DT), DT, rng) for i, n in enumerate((700, 500))
+    ]
     st = stack_runs(runs)
     resp = predict(st, np.stack([rate.to_vector()] * 2))
     for i, r in enumerate(runs):
-        one = simulate(rate, r.u, DT, omega0=st.omega[i, 0], angle0=r.angle[0], angle_measured=r.angle)
+        one = simulate(
+            rate, r.u, DT, omega0=st.omega[i, 0], angle0=r.angle[0], angle_measured=r.angle
+        )
         np.testing.assert_array_equal(resp.omega[1, i, : len(r.u)], one.omega)
 
 
 def test_refit_recovers_a_known_effect_from_a_wrong_start(rate):
     rng = np.random.default_rng(4)
     truth = EffectSpec("cogging", {"amplitude_rad_s2": 4.0, "period_rad": 0.12, "phase_rad": 1.0})
-    runs = [make_run(f"r{i}", rate, excitation(rng, 1500, DT), DT, rng, [truth], angle0=0.1) for i in range(2)]
+    runs = [
+        make_run(f"r{i}", rate, excitation(rng, 1500, DT), DT, rng, [truth], angle0=0.1)
+        for i in range(2)
+    ]
     st = stack_runs(runs)
     fits = fit_candidates(st, rate.to_vector(), [BASELINE, "cogging"], max_iter=6)
     got = fits["cogging"].params

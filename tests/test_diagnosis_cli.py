@@ -36,10 +36,25 @@ def case(tmp_path_factory):
     report = folder / "report"
     code = main(
         [
-            "diagnose", str(files[0]), str(files[1]), "--holdout", str(files[2]),
-            "--params", str(default_parameters_path()), "--axis", AXIS,
-            "--candidates", "cogging,unbalance,cable_spring", "--max-rounds", "1",
-            "--out", str(out), "--report", str(report), "--json", str(folder / "result.json"),
+            "diagnose",
+            str(files[0]),
+            str(files[1]),
+            "--holdout",
+            str(files[2]),
+            "--params",
+            str(default_parameters_path()),
+            "--axis",
+            AXIS,
+            "--candidates",
+            "cogging,unbalance,cable_spring",
+            "--max-rounds",
+            "1",
+            "--out",
+            str(out),
+            "--report",
+            str(report),
+            "--json",
+            str(folder / "result.json"),
         ]
     )
     return code, folder, files, out, report
@@ -49,10 +64,17 @@ def test_the_command_writes_the_parameter_file_report_recording_and_json(case):
     code, folder, _, out, report = case
     assert code == 0
     result = json.loads((folder / "result.json").read_text())
-    assert {"selected_effect", "effect_parameters", "rmse_before", "rmse_after", "noise_floor", "ranking"} <= set(result)
+    assert {
+        "selected_effect",
+        "effect_parameters",
+        "rmse_before",
+        "rmse_after",
+        "noise_floor",
+        "ranking",
+    } <= set(result)
     assert result["selected_effect"] == "cogging"
     assert result["effect_parameters"]["period_rad"] == pytest.approx(0.15, rel=0.01)
-    assert [r["name"] for r in result["ranking"]][0] == "cogging"
+    assert result["ranking"][0]["name"] == "cogging"
     effects = load_parameters(out).axis(AXIS).effects
     assert [e.name for e in effects] == ["cogging"]
     md = (report / "updated_diagnosis.md").read_text()
@@ -65,7 +87,13 @@ def test_the_fast_model_with_the_updated_file_reproduces_held_out_data(case):
     _, _, files, out, _ = case
     held = load_measured(files[2])
     axis = load_parameters(out).axis(AXIS)
-    with_effect = simulate(axis.rate_params(), held.u, DT, angle0=held.angle[0], effects=[make_effect(e, DT) for e in axis.effects])
+    with_effect = simulate(
+        axis.rate_params(),
+        held.u,
+        DT,
+        angle0=held.angle[0],
+        effects=[make_effect(e, DT) for e in axis.effects],
+    )
     rms = np.sqrt(np.mean((held.omega - with_effect.omega)[50:] ** 2))
     assert rms <= 1.2 * NOISE
 
@@ -103,6 +131,20 @@ def test_bad_input_is_one_line_naming_what_and_where(tmp_path, capsys):
     rng = np.random.default_rng(0)
     rate = load_parameters(params).axis("inner_az").rate_params()
     data = save_measured(make_run("r", rate, excitation(rng, 300, DT), DT, rng), tmp_path / "r.csv")
-    assert main(["diagnose", str(data), "--params", params, "--candidates", "coging", "--report", str(tmp_path)]) == 2
+    assert (
+        main(
+            [
+                "diagnose",
+                str(data),
+                "--params",
+                params,
+                "--candidates",
+                "coging",
+                "--report",
+                str(tmp_path),
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert "did you mean 'cogging'" in err and err.count("\n") == 1

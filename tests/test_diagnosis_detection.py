@@ -66,7 +66,16 @@ def make_case(params, name, seed, n=N):
     us = [excitation(rng, n, DT) for _ in range(3)]
     effect = random_effect(name, rng, us[0]) if name != "none" else None
     runs = [
-        make_run(f"run{i}", rate, u, DT, rng, [effect] if effect else [], NOISE, angle0=rng.uniform(-0.2, 0.2))
+        make_run(
+            f"run{i}",
+            rate,
+            u,
+            DT,
+            rng,
+            [effect] if effect else [],
+            NOISE,
+            angle0=rng.uniform(-0.2, 0.2),
+        )
         for i, u in enumerate(us)
     ]
     return effect, runs[:2], runs[2:]
@@ -95,7 +104,9 @@ def check_found(diag, effect):
 @pytest.mark.parametrize("name", [n for n in LIBRARY if n != "torque_offset"])
 def test_an_undeclared_effect_is_found_with_its_parameters(params, name):
     effect, train, held = make_case(params, name, seed=LIBRARY.index(name) + 10)
-    diag = diagnose(train, params, "inner_az", held, candidates=(name,) + CONFUSERS[name], max_rounds=1)
+    diag = diagnose(
+        train, params, "inner_az", held, candidates=(name,) + CONFUSERS[name], max_rounds=1
+    )
     check_found(diag, effect)
 
 
@@ -106,11 +117,20 @@ def test_a_torque_offset_is_found_or_absorbed_by_the_per_direction_friction(para
     # offset trades off against the friction of every regime, so each must
     # be visited often enough in training to be pinned down.
     effect, train, held = make_case(params, "torque_offset", seed=13, n=3000)
-    diag = diagnose(train, params, "inner_az", held, candidates=("torque_offset",) + CONFUSERS["torque_offset"], max_rounds=1)
+    diag = diagnose(
+        train,
+        params,
+        "inner_az",
+        held,
+        candidates=("torque_offset",) + CONFUSERS["torque_offset"],
+        max_rounds=1,
+    )
     j = diag.to_json()
     assert j["selected_effect"] in ("torque_offset", "none")
     if j["selected_effect"] == "torque_offset":
-        assert j["effect_parameters"]["accel_rad_s2"] == pytest.approx(effect.params["accel_rad_s2"], rel=0.2)
+        assert j["effect_parameters"]["accel_rad_s2"] == pytest.approx(
+            effect.params["accel_rad_s2"], rel=0.2
+        )
     else:
         assert j["refit_adopted"]
     assert j["rmse_after"] <= 1.2 * j["noise_floor"]

@@ -15,8 +15,16 @@ from isp_twin.resources import default_parameters_path
 
 DT = 1e-3
 LIBRARY = (
-    "cogging", "cable_spring", "unbalance", "torque_offset", "input_delay",
-    "deadzone", "saturation", "sensor_bias", "lugre", "resonance",
+    "cogging",
+    "cable_spring",
+    "unbalance",
+    "torque_offset",
+    "input_delay",
+    "deadzone",
+    "saturation",
+    "sensor_bias",
+    "lugre",
+    "resonance",
 )
 EXAMPLE = {
     "cogging": {"amplitude_rad_s2": 3.0, "period_rad": 0.1, "phase_rad": 0.4},
@@ -35,7 +43,10 @@ EXAMPLE = {
 def run_hooks(effect: Effect, u, angle, rate):
     """Step every hook of an effect along a trajectory, as the engines do."""
     effect.reset()
-    out = [(effect.command(a), effect.acceleration(b, c), effect.measure(c)) for a, b, c in zip(u, angle, rate)]
+    out = [
+        (effect.command(a), effect.acceleration(b, c), effect.measure(c))
+        for a, b, c in zip(u, angle, rate)
+    ]
     return np.array(out, dtype=float)
 
 
@@ -120,10 +131,14 @@ def test_unbalance_is_a_sine_of_angle():
 
 def test_input_delay_shifts_by_whole_samples_and_interpolates_fractions():
     u = np.arange(20.0) ** 2
-    whole = run_hooks(make_effect(EffectSpec("input_delay", {"delay_s": 0.003}), DT), u, u * 0, u * 0)[:, 0]
+    whole = run_hooks(
+        make_effect(EffectSpec("input_delay", {"delay_s": 0.003}), DT), u, u * 0, u * 0
+    )[:, 0]
     np.testing.assert_allclose(whole[3:], u[:-3])
     np.testing.assert_allclose(whole[:3], u[0])  # the command before the start is the first one
-    half = run_hooks(make_effect(EffectSpec("input_delay", {"delay_s": 0.0025}), DT), u, u * 0, u * 0)[:, 0]
+    half = run_hooks(
+        make_effect(EffectSpec("input_delay", {"delay_s": 0.0025}), DT), u, u * 0, u * 0
+    )[:, 0]
     np.testing.assert_allclose(half[3:], 0.5 * (u[:-3] + u[1:-2]))
 
 
@@ -190,15 +205,25 @@ def test_a_torque_effect_enters_the_fast_model_with_the_twins_zero_order_hold(ra
     u = np.full(600, 1500.0)  # moves in + on the right side throughout
     c = 5.0
     a = float(rate.pole[0])
-    via_effect = simulate(rate, u, DT, angle0=0.1, effects=[make_effect(EffectSpec("torque_offset", {"accel_rad_s2": c}), DT)])
-    via_extra = simulate(rate, u, DT, angle0=0.1, extra_rate=np.full(600, c * DT * (1 - a) / -np.log(a)))
+    via_effect = simulate(
+        rate,
+        u,
+        DT,
+        angle0=0.1,
+        effects=[make_effect(EffectSpec("torque_offset", {"accel_rad_s2": c}), DT)],
+    )
+    via_extra = simulate(
+        rate, u, DT, angle0=0.1, extra_rate=np.full(600, c * DT * (1 - a) / -np.log(a))
+    )
     np.testing.assert_allclose(via_effect.omega, via_extra.omega, rtol=1e-12, atol=1e-15)
 
 
 def test_measurement_effects_change_the_reported_rate_not_the_motion(rate):
     u = trajectory(800)[0]
     plain = simulate(rate, u, DT)
-    biased = simulate(rate, u, DT, effects=[make_effect(EffectSpec("sensor_bias", EXAMPLE["sensor_bias"]), DT)])
+    biased = simulate(
+        rate, u, DT, effects=[make_effect(EffectSpec("sensor_bias", EXAMPLE["sensor_bias"]), DT)]
+    )
     np.testing.assert_array_equal(biased.omega_true, plain.omega)
     np.testing.assert_allclose(biased.omega, 0.01 + 1.03 * plain.omega)
 
@@ -206,11 +231,15 @@ def test_measurement_effects_change_the_reported_rate_not_the_motion(rate):
 def test_command_effects_match_a_pre_shaped_command(rate):
     u = trajectory(800)[0]
     shaped = simulate(rate, np.clip(u, -1500, 1500), DT)
-    sat = simulate(rate, u, DT, effects=[make_effect(EffectSpec("saturation", {"limit_digits": 1500.0}), DT)])
+    sat = simulate(
+        rate, u, DT, effects=[make_effect(EffectSpec("saturation", {"limit_digits": 1500.0}), DT)]
+    )
     np.testing.assert_array_equal(sat.omega, shaped.omega)
 
 
-@pytest.mark.parametrize("freq, zeta, coupling", [(40.0, 0.05, 0.15), (3.0, 0.5, -1.0), (300.0, 0.002, 0.3)])
+@pytest.mark.parametrize(
+    "freq, zeta, coupling", [(40.0, 0.05, 0.15), (3.0, 0.5, -1.0), (300.0, 0.002, 0.3)]
+)
 def test_resonance_discretization_equals_the_matrix_exponential(freq, zeta, coupling):
     from scipy.linalg import expm
 

@@ -9,7 +9,12 @@ from pathlib import Path
 
 from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import ParameterError
-from isp_twin.measured import DataMapping, load_data_description, load_measured, mapping_from_options
+from isp_twin.measured import (
+    DataMapping,
+    load_data_description,
+    load_measured,
+    mapping_from_options,
+)
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.units import DEG
 
@@ -34,21 +39,50 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--holdout", nargs="+", default=[], metavar="DATA", help="held-out runs")
     p.add_argument("--out", type=Path, default=None, help="updated parameter file (YAML)")
     p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
-    p.add_argument("--map", action="append", default=[], metavar="KEY=SOURCE[*SCALE]",
-                   help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad")
-    p.add_argument("--describe", type=Path, default=None, help="YAML data description (instead of --map)")
-    p.add_argument("--candidates", default=None, metavar="A,B,...",
-                   help="comma-separated effects to test (default: the whole library)")
-    p.add_argument("--side", default="measured", choices=("measured", "right", "left"),
-                   help="half-plane of the regimes: from the measured angle (the paper's rule), "
-                   "or fixed (a freely spinning motor)")
+    p.add_argument(
+        "--map",
+        action="append",
+        default=[],
+        metavar="KEY=SOURCE[*SCALE]",
+        help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad",
+    )
+    p.add_argument(
+        "--describe", type=Path, default=None, help="YAML data description (instead of --map)"
+    )
+    p.add_argument(
+        "--candidates",
+        default=None,
+        metavar="A,B,...",
+        help="comma-separated effects to test (default: the whole library)",
+    )
+    p.add_argument(
+        "--side",
+        default="measured",
+        choices=("measured", "right", "left"),
+        help="half-plane of the regimes: from the measured angle (the paper's rule), "
+        "or fixed (a freely spinning motor)",
+    )
     p.add_argument("--max-rounds", type=int, default=2, help="at most this many effects are added")
-    p.add_argument("--iterations", type=int, default=6, help="Levenberg-Marquardt iterations per refit")
-    p.add_argument("--json", type=Path, default=None, metavar="PATH", help="write the result as JSON")
-    p.add_argument("--report", type=Path, default=None, metavar="DIR",
-                   help="report folder (default: beside --out, else diagnosis_report/)")
-    p.add_argument("--recording", type=Path, default=None, metavar="PATH",
-                   help="Rerun recording of the residuals (default: REPORT_DIR/residuals.rrd)")
+    p.add_argument(
+        "--iterations", type=int, default=6, help="Levenberg-Marquardt iterations per refit"
+    )
+    p.add_argument(
+        "--json", type=Path, default=None, metavar="PATH", help="write the result as JSON"
+    )
+    p.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="report folder (default: beside --out, else diagnosis_report/)",
+    )
+    p.add_argument(
+        "--recording",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help="Rerun recording of the residuals (default: REPORT_DIR/residuals.rrd)",
+    )
     p.add_argument("--no-recording", action="store_true", help="do not write a Rerun recording")
     p.set_defaults(execute=execute)
 
@@ -88,13 +122,19 @@ def execute(args: argparse.Namespace) -> int:
     )
     result = diag.to_json()
 
-    print(f"diagnosis of {args.axis} on {len(train)} run(s); held out: {', '.join(diag.holdout_names)}")
+    print(
+        f"diagnosis of {args.axis} on {len(train)} run(s); held out: {', '.join(diag.holdout_names)}"
+    )
     for i, r in enumerate(diag.rounds, 1):
-        print(f"round {i}: {'no missing effect found' if r.selected == 'none' else 'selected ' + r.selected}")
+        print(
+            f"round {i}: {'no missing effect found' if r.selected == 'none' else 'selected ' + r.selected}"
+        )
         print(f"  {'candidate':<14} {'held-out RMS':>13} {'z':>7} {'dBIC':>10}  verdict")
         for v in r.verdicts:
-            print(f"  {v.name:<14} {v.holdout_rmse / DEG:>9.4g} deg/s {v.improvement_z:>7.2f} "
-                  f"{v.delta_bic:>10.1f}  {'ACCEPT ' if v.significant else ''}{v.reason}")
+            print(
+                f"  {v.name:<14} {v.holdout_rmse / DEG:>9.4g} deg/s {v.improvement_z:>7.2f} "
+                f"{v.delta_bic:>10.1f}  {'ACCEPT ' if v.significant else ''}{v.reason}"
+            )
     for fit in diag.accepted:
         print(f"{fit.name}:")
         for k, v in fit.params.items():
@@ -106,14 +146,18 @@ def execute(args: argparse.Namespace) -> int:
     if diag.selected_effect == "none":
         print("no missing effect found")
         if result["refit_adopted"]:
-            print("(the parameters re-identified without a new effect fit significantly better: "
-                  "they are the ones written)")
+            print(
+                "(the parameters re-identified without a new effect fit significantly better: "
+                "they are the ones written)"
+            )
 
     if args.out is not None:
         out_set = replace(diag.params_out, name=args.out.stem, path=None)
         save_parameters(out_set, args.out)
         print(f"parameters written to {args.out}")
-    report_dir = args.report or (args.out.parent if args.out is not None else Path("diagnosis_report"))
+    report_dir = args.report or (
+        args.out.parent if args.out is not None else Path("diagnosis_report")
+    )
     stem = args.out.stem if args.out is not None else "diagnosis"
     report = write_report(diag, Path(report_dir) / f"{stem}_diagnosis.md", args.out)
     print(f"report written to {report}")

@@ -156,7 +156,12 @@ def fit_candidates(
     if need:
         if context is None:
             resp = predict(stack, x_rate[None], (), fixed)
-            one = type(resp)(*(None if a is None else a[0] for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)))
+            one = type(resp)(
+                *(
+                    None if a is None else a[0]
+                    for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
+                )
+            )
             context = residual_context(stack, one, x_rate.reshape(4, 5)[:, 0])
         # Global step: every guess of every candidate in one batch.
         guesses = {}
@@ -168,7 +173,11 @@ def fit_candidates(
                     g[p] = float(np.clip(g[p], *cls.bounds[p]))
             guesses[n] = gs
         reqs = [
-            (np.tile(x_rate, (len(guesses[n]), 1)), n, {p: np.array([g[p] for g in guesses[n]]) for p in classes[n].param_names})
+            (
+                np.tile(x_rate, (len(guesses[n]), 1)),
+                n,
+                {p: np.array([g[p] for g in guesses[n]]) for p in classes[n].param_names},
+            )
             for n in need
         ]
         for n, res in zip(need, residuals_many(stack, reqs, fixed)):
@@ -186,7 +195,9 @@ def fit_candidates(
         lo_e = np.array([classes[n].bounds[p][0] for p in free]) if free else np.zeros(0)
         hi_e = np.array([classes[n].bounds[p][1] for p in free]) if free else np.zeros(0)
         x_e = np.array([start[p] for p in free]) if free else np.zeros(0)
-        sc_e = np.array([_effect_scale(p, lo, hi, g) for p, lo, hi, g in zip(free, lo_e, hi_e, x_e)])
+        sc_e = np.array(
+            [_effect_scale(p, lo, hi, g) for p, lo, hi, g in zip(free, lo_e, hi_e, x_e)]
+        )
         layouts.append((n, free, frozen, start))
         x_n = np.asarray((rate_starts or {}).get(n, x_rate), float)
         lo_r, hi_r, sc_r = rate_bounds(x_n)
@@ -224,7 +235,13 @@ def fit_candidates(
         ci = {p: float(fit.ci95[20 + j]) for j, p in enumerate(free)}
         ci.update({p: float("nan") for p in frozen})
         out[n] = _result(
-            n, fit, {p: values[p] for p in cls.param_names}, {p: ci[p] for p in cls.param_names}, free, stack, fixed
+            n,
+            fit,
+            {p: values[p] for p in cls.param_names},
+            {p: ci[p] for p in cls.param_names},
+            free,
+            stack,
+            fixed,
         )
     return out
 
@@ -251,7 +268,11 @@ def _result(name, fit: FitResult, params, ci, free, stack: RunStack, fixed) -> C
 def holdout_residuals(stack: RunStack, fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
     """`holdout_residual` of several fits (same fixed effects) in one time loop."""
     reqs = [
-        (f.rate_vector[None], None if f.name == BASELINE else f.name, {k: np.array([v]) for k, v in f.params.items()})
+        (
+            f.rate_vector[None],
+            None if f.name == BASELINE else f.name,
+            {k: np.array([v]) for k, v in f.params.items()},
+        )
         for f in fits
     ]
     out = []

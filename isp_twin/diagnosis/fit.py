@@ -15,7 +15,7 @@ from enum import Enum
 
 import numpy as np
 
-__all__ = ["FitStatus", "FitResult", "lm_steps", "solve_many", "levenberg_marquardt"]
+__all__ = ["FitResult", "FitStatus", "levenberg_marquardt", "lm_steps", "solve_many"]
 
 
 class FitStatus(Enum):
@@ -151,7 +151,8 @@ def lm_steps(
 
 
 def solve_many(
-    problems: Sequence[Generator], evaluate: Callable[[list[tuple[int, np.ndarray]]], list[np.ndarray]]
+    problems: Sequence[Generator],
+    evaluate: Callable[[list[tuple[int, np.ndarray]]], list[np.ndarray]],
 ) -> list[FitResult]:
     """Run several `lm_steps` generators in lockstep.
 

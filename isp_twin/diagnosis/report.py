@@ -12,7 +12,7 @@ from isp_twin.diagnosis.search import Diagnosis
 from isp_twin.diagnosis.selection import BLOCK, MIN_GAIN, Z_MIN
 from isp_twin.units import DEG
 
-__all__ = ["write_report", "write_recording", "residual_series"]
+__all__ = ["residual_series", "write_recording", "write_report"]
 
 
 def residual_series(diag: Diagnosis) -> dict[str, np.ndarray]:
@@ -40,7 +40,11 @@ def _figure(diag: Diagnosis, path: Path) -> None:
 
     s = residual_series(diag)
     fig, axes = plt.subplots(2, 3, figsize=(14, 7))
-    for ax, key, label in zip(axes[0], ("t", "angle", "rate"), ("time [s] (runs end to end)", "angle [deg]", "rate [deg/s]")):
+    for ax, key, label in zip(
+        axes[0],
+        ("t", "angle", "rate"),
+        ("time [s] (runs end to end)", "angle [deg]", "rate [deg/s]"),
+    ):
         x = s[key] if key == "t" else s[key] / DEG
         ax.plot(x, s["before"] / DEG, ",", alpha=0.5, label="before")
         ax.plot(x, s["after"] / DEG, ",", alpha=0.5, label="after")
@@ -129,13 +133,17 @@ def write_report(diag: Diagnosis, path: Path, params_out: Path | None = None) ->
         f"| autocorrelation lags outside the 95 % band | {a.acf_outside:.0%} | {b.acf_outside:.0%} |",
         f"| white | {a.white} | {b.white} |",
         f"| correlated with the input | {a.input_correlated} | {b.input_correlated} |",
-        f"| mean residual moving + / - [rad/s] | {_fmt(a.direction['+'])} / {_fmt(a.direction['-'])} "
-        f"| {_fmt(b.direction['+'])} / {_fmt(b.direction['-'])} |",
+        (
+            f"| mean residual moving + / - [rad/s] | {_fmt(a.direction['+'])} / "
+            f"{_fmt(a.direction['-'])} | {_fmt(b.direction['+'])} / {_fmt(b.direction['-'])} |"
+        ),
         f"| largest spectral peak [Hz] | {_fmt(a.peak_hz)} | {_fmt(b.peak_hz)} |",
         "",
-        f"Acceptance rule: held-out MSE improvement > {Z_MIN:g} standard errors of its noise "
-        f"term (blocks of {BLOCK} samples), > {MIN_GAIN:g} x noise variance, and lower BIC "
-        "(docs/diagnosis.md).",
+        (
+            f"Acceptance rule: held-out MSE improvement > {Z_MIN:g} standard errors of its noise "
+            f"term (blocks of {BLOCK} samples), > {MIN_GAIN:g} x noise variance, and lower BIC "
+            "(docs/diagnosis.md)."
+        ),
         "",
         f"![residuals]({png.name})",
         "",
@@ -160,5 +168,12 @@ def write_recording(diag: Diagnosis, path: Path) -> Path:
         "noise_floor": j["noise_floor"],
     }
     return record_residuals(
-        diag.axis, s["t"], s["before"], s["after"], path, angle=s["angle"], rate=s["rate"], metadata=meta
+        diag.axis,
+        s["t"],
+        s["before"],
+        s["after"],
+        path,
+        angle=s["angle"],
+        rate=s["rate"],
+        metadata=meta,
     )

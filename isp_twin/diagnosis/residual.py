@@ -23,11 +23,11 @@ import numpy as np
 
 __all__ = [
     "NOISE_METHOD",
-    "ResidualContext",
     "ResidualAnalysis",
+    "ResidualContext",
+    "analyse",
     "noise_floor",
     "residual_context",
-    "analyse",
 ]
 
 NOISE_METHOD = (
@@ -183,9 +183,11 @@ def analyse(stack, resp, lags: int = 50) -> ResidualAnalysis:
     u = stack.flat(stack.u)
     m = res.size
     lags = min(lags, max(m // 4, 1))
-    acf = np.mean([_correlation(r, r, lags, 1) for r in per_run if r.size > 4 * lags], axis=0) if any(
-        r.size > 4 * lags for r in per_run
-    ) else _correlation(res, res, lags, 1)
+    acf = (
+        np.mean([_correlation(r, r, lags, 1) for r in per_run if r.size > 4 * lags], axis=0)
+        if any(r.size > 4 * lags for r in per_run)
+        else _correlation(res, res, lags, 1)
+    )
     band = 1.96 / np.sqrt(m)
     outside = float(np.mean(np.abs(acf) > band))
     xc = _correlation(res, u, lags, 0)
@@ -194,7 +196,9 @@ def analyse(stack, resp, lags: int = 50) -> ResidualAnalysis:
     binned = {
         "angle": _binned(stack.flat(stack.angle), res),
         "rate": _binned(stack.flat(stack.omega), res),
-        "acceleration": _binned(np.clip(stack.flat(accel), *np.quantile(stack.flat(accel), [0.01, 0.99])), res),
+        "acceleration": _binned(
+            np.clip(stack.flat(accel), *np.quantile(stack.flat(accel), [0.01, 0.99])), res
+        ),
         "time": _binned(t, res),
     }
     rate = stack.flat(stack.omega)

@@ -30,7 +30,7 @@ from isp_twin.errors import DataError, ParameterError, nearest
 from isp_twin.measured import MeasuredData
 from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
 
-__all__ = ["LIBRARY", "RoundResult", "Diagnosis", "diagnose", "split_in_time"]
+__all__ = ["LIBRARY", "Diagnosis", "RoundResult", "diagnose", "split_in_time"]
 
 #: The candidate effects, in report order.
 LIBRARY: tuple[str, ...] = (
@@ -150,7 +150,8 @@ class Diagnosis:
                 for v in first.verdicts
             ],
             "rounds": [
-                {"selected": r.selected, "ranking": [v.name for v in r.verdicts]} for r in self.rounds
+                {"selected": r.selected, "ranking": [v.name for v in r.verdicts]}
+                for r in self.rounds
             ],
             "analysis_before": self.analysis_before.summary(),
             "analysis_after": self.analysis_after.summary(),
@@ -166,14 +167,27 @@ def split_in_time(run) -> tuple[MeasuredData, MeasuredData]:
     """Two halves of one run (for cross-validation with a single data set)."""
     n = len(run.u) // 2
     parts = []
-    for name, sl in ((f"{run.name}[first half]", slice(0, n)), (f"{run.name}[second half]", slice(n, None))):
+    for name, sl in (
+        (f"{run.name}[first half]", slice(0, n)),
+        (f"{run.name}[second half]", slice(n, None)),
+    ):
         parts.append(
-            MeasuredData(name, run.t[sl], run.u[sl], run.omega[sl], run.angle[sl], getattr(run, "source", None), run.dt)
+            MeasuredData(
+                name,
+                run.t[sl],
+                run.u[sl],
+                run.omega[sl],
+                run.angle[sl],
+                getattr(run, "source", None),
+                run.dt,
+            )
         )
     return parts[0], parts[1]
 
 
-def _cv_residuals(runs, fits: Sequence[CandidateFit], max_iter: int, side=None) -> list[list[np.ndarray]]:
+def _cv_residuals(
+    runs, fits: Sequence[CandidateFit], max_iter: int, side=None
+) -> list[list[np.ndarray]]:
     """Leave-one-run-out residuals of each fit; every fold refits all of them
     in lockstep, warm-started from their all-run fits."""
     out: list[list[np.ndarray]] = [[] for _ in fits]
@@ -231,7 +245,9 @@ def diagnose(
     holdout = list(holdout)
     sides = {"measured": None, "right": 1.0, "left": -1.0}
     if side not in sides:
-        raise ParameterError(f"diagnose: side '{side}'{nearest(side, sides)}; allowed: {', '.join(sides)}")
+        raise ParameterError(
+            f"diagnose: side '{side}'{nearest(side, sides)}; allowed: {', '.join(sides)}"
+        )
     fixed_side = sides[side]
 
     def stack_runs(rs):
@@ -258,7 +274,11 @@ def diagnose(
         runs = list(split_in_time(runs[0]))
     train = stack_runs(runs)
     held = stack_runs(holdout) if holdout else None
-    holdout_names = tuple(r.name for r in holdout) if holdout else ("cross-validation: " + ", ".join(train.names),)
+    holdout_names = (
+        tuple(r.name for r in holdout)
+        if holdout
+        else ("cross-validation: " + ", ".join(train.names),)
+    )
 
     def held_residuals(fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
         if held is not None:
@@ -267,8 +287,12 @@ def diagnose(
 
     x_file = ax.rate_params().to_vector()
     fixed = tuple(ax.effects)
-    given = CandidateFit(BASELINE, {}, {}, x_file, np.full(20, np.nan), np.nan, 1, 20, np.nan, None, fixed)
-    before_held = holdout_residual(held, given) if held is not None else holdout_residual(train, given)
+    given = CandidateFit(
+        BASELINE, {}, {}, x_file, np.full(20, np.nan), np.nan, 1, 20, np.nan, None, fixed
+    )
+    before_held = (
+        holdout_residual(held, given) if held is not None else holdout_residual(train, given)
+    )
     rmse_before = _rms(before_held)
     analysis_before = analyse(train, _one(predict(train, x_file[None], (), fixed)))
 
@@ -287,14 +311,17 @@ def diagnose(
         base_held = held_all[0]
         floor = noise_floor(base_held)
         verdicts = [
-            judge(n, base_held, h, base.bic, fits[n].bic, floor) for n, h in zip(remaining, held_all[1:])
+            judge(n, base_held, h, base.bic, fits[n].bic, floor)
+            for n, h in zip(remaining, held_all[1:])
         ]
         verdicts.sort(key=lambda v: v.holdout_rmse)
         best = select(verdicts, floor)
         selected = best.name if best else BASELINE
         after_held = held_all[1 + remaining.index(selected)] if best else base_held
         rounds.append(
-            RoundResult(base, fits, tuple(verdicts), selected, tuple(base_held), tuple(after_held), floor)
+            RoundResult(
+                base, fits, tuple(verdicts), selected, tuple(base_held), tuple(after_held), floor
+            )
         )
         if best is None:
             break
@@ -307,11 +334,20 @@ def diagnose(
 
     accepted = [r for r in rounds if r.selected != BASELINE]
     m = train.n_samples
-    given_res = train.flat(train.omega - _one(predict(train, x_file[None], (), tuple(ax.effects))).omega)
+    given_res = train.flat(
+        train.omega - _one(predict(train, x_file[None], (), tuple(ax.effects))).omega
+    )
     bic_given = float(m * np.log(max(given_res @ given_res, 1e-300) / m) + 20 * np.log(m))
     # Without a new effect, the plain re-identification is kept if it passes
     # the same rule against the given parameters.
-    refit = judge("refit", before_held, rounds[0].holdout_before, bic_given, rounds[0].baseline.bic, rounds[0].noise_floor)
+    refit = judge(
+        "refit",
+        before_held,
+        rounds[0].holdout_before,
+        bic_given,
+        rounds[0].baseline.bic,
+        rounds[0].noise_floor,
+    )
     if accepted:
         final = accepted[-1].model
         after_held = accepted[-1].holdout_after
@@ -349,7 +385,12 @@ def diagnose(
 
 def _one(resp):
     """The first parameter set of a batched (P, R, N) response: (R, N)."""
-    return type(resp)(*(None if a is None else a[0] for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)))
+    return type(resp)(
+        *(
+            None if a is None else a[0]
+            for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
+        )
+    )
 
 
 def _updated_axis(ax: AxisParams, fit: CandidateFit) -> AxisParams:
@@ -359,8 +400,10 @@ def _updated_axis(ax: AxisParams, fit: CandidateFit) -> AxisParams:
     ci_regimes = tuple(
         replace(r, b=float("nan")) for r in RateParams.from_vector(np.abs(ci)).to_regimes(b)
     )
-    note = (ax.note + "; " if ax.note else "") + "re-identified by diagnose with " + ", ".join(
-        e.name for e in fit.effects()
+    note = (
+        (ax.note + "; " if ax.note else "")
+        + "re-identified by diagnose with "
+        + ", ".join(e.name for e in fit.effects())
     )
     return replace(
         ax,

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Z_MIN", "BLOCK", "MIN_GAIN", "Verdict", "judge", "select"]
+__all__ = ["BLOCK", "MIN_GAIN", "Z_MIN", "Verdict", "judge", "select"]
 
 Z_MIN = 3.0
 BLOCK = 25
@@ -108,7 +108,9 @@ def judge(
     return Verdict(name, rmse, float(z), dbic, ok_z and ok_gain and ok_bic, reason)
 
 
-def select(verdicts: Sequence[Verdict], noise_floor: float = 0.0, min_gain: float = MIN_GAIN) -> Verdict | None:
+def select(
+    verdicts: Sequence[Verdict], noise_floor: float = 0.0, min_gain: float = MIN_GAIN
+) -> Verdict | None:
     """The significant verdict with the lowest held-out RMSE, or None.
 
     Candidates whose held-out MSE is within ``min_gain * noise_floor^2`` of

@@ -17,7 +17,7 @@ from isp_twin.effects.batched import make_batched
 from isp_twin.errors import DataError
 from isp_twin.parameters import EffectSpec, RateParams
 
-__all__ = ["WARMUP", "RunStack", "stack_runs", "predict", "residuals", "residuals_many"]
+__all__ = ["WARMUP", "RunStack", "predict", "residuals", "residuals_many", "stack_runs"]
 
 
 @dataclass(frozen=True)
@@ -122,9 +122,17 @@ def predict(
     rows = np.repeat(x, r, axis=0)  # set-major: row = set*R + run
     batch = []
     for name, params in effects:
-        batch.append(make_batched(name, {k: np.repeat(np.asarray(v, float), r) for k, v in params.items()}, stack.dt))
+        batch.append(
+            make_batched(
+                name, {k: np.repeat(np.asarray(v, float), r) for k, v in params.items()}, stack.dt
+            )
+        )
     for spec in fixed:
-        batch.append(make_batched(spec.name, {k: np.full(p * r, v) for k, v in spec.params.items()}, stack.dt))
+        batch.append(
+            make_batched(
+                spec.name, {k: np.full(p * r, v) for k, v in spec.params.items()}, stack.dt
+            )
+        )
     resp = simulate(
         RateParams.from_vector(rows),
         np.tile(stack.u, (p, 1)),
@@ -137,7 +145,12 @@ def predict(
     )
     if not np.all(np.isfinite(resp.omega)):
         # A diverging variant is a bad parameter set, not an error: make it lose.
-        resp = type(resp)(np.nan_to_num(resp.omega, nan=1e3, posinf=1e3, neginf=-1e3), resp.angle, resp.regime, resp.omega_true)
+        resp = type(resp)(
+            np.nan_to_num(resp.omega, nan=1e3, posinf=1e3, neginf=-1e3),
+            resp.angle,
+            resp.regime,
+            resp.omega_true,
+        )
     shape = (p, r, n)
     return type(resp)(
         resp.omega.reshape(shape),

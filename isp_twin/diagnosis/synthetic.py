@@ -19,7 +19,7 @@ from isp_twin.effects import make_effect
 from isp_twin.measured import MeasuredData
 from isp_twin.parameters import EffectSpec, RateParams
 
-__all__ = ["EFFECT_RANGES", "excitation", "random_effect", "make_run"]
+__all__ = ["EFFECT_RANGES", "excitation", "make_run", "random_effect"]
 
 #: Effect -> parameter -> (low, high, random sign?) of the true value.
 EFFECT_RANGES: dict[str, dict[str, tuple[float, float, bool]]] = {
@@ -49,8 +49,12 @@ EFFECT_RANGES: dict[str, dict[str, tuple[float, float, bool]]] = {
 def excitation(rng: np.random.Generator, n: int, dt: float) -> np.ndarray:
     """A random command [digits], shape (n,) (see module doc; levels suit Table 2's inner azimuth)."""
     t = np.arange(n) * dt
-    slow = rng.uniform(1500.0, 3000.0) * np.sin(2 * np.pi * rng.uniform(0.4, 0.8) * t + rng.uniform(0, 2 * np.pi))
-    fast = rng.uniform(300.0, 800.0) * np.sin(2 * np.pi * rng.uniform(2.0, 6.0) * t + rng.uniform(0, 2 * np.pi))
+    slow = rng.uniform(1500.0, 3000.0) * np.sin(
+        2 * np.pi * rng.uniform(0.4, 0.8) * t + rng.uniform(0, 2 * np.pi)
+    )
+    fast = rng.uniform(300.0, 800.0) * np.sin(
+        2 * np.pi * rng.uniform(2.0, 6.0) * t + rng.uniform(0, 2 * np.pi)
+    )
     steps = np.zeros(n)
     k = 0
     while k < n:
@@ -105,7 +109,9 @@ def make_run(
         t=np.arange(n) * dt,
         u=np.asarray(u, float),
         omega=resp.omega + rng.normal(0.0, noise_rad_s, n),
-        angle=np.round(resp.angle / angle_lsb_rad) * angle_lsb_rad if angle_lsb_rad > 0 else resp.angle,
+        angle=np.round(resp.angle / angle_lsb_rad) * angle_lsb_rad
+        if angle_lsb_rad > 0
+        else resp.angle,
         source=None,
         dt=dt,
     )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -19,13 +21,16 @@ class CableSpring(Effect):
     name = "cable_spring"
     param_names = ("stiffness_1_s2", "offset_rad_s2")
     #: Parameters that make the effect do nothing.
-    null = {"stiffness_1_s2": 0.0, "offset_rad_s2": 0.0}
-    bounds = {"stiffness_1_s2": (-5000.0, 5000.0), "offset_rad_s2": (-200.0, 200.0)}
+    null: ClassVar[dict[str, float]] = {"stiffness_1_s2": 0.0, "offset_rad_s2": 0.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {
+        "stiffness_1_s2": (-5000.0, 5000.0),
+        "offset_rad_s2": (-200.0, 200.0),
+    }
     #: A constant torque is exactly equivalent to shifting Ts and Tc of the
     #: + regimes down and of the - regimes up (Eq. 5 has them per direction),
     #: so rate data cannot separate the offset from friction: it keeps the
     #: value the residual of the current model shows (`guesses`).
-    frozen = ("offset_rad_s2",)
+    frozen: ClassVar[tuple[str, ...]] = ("offset_rad_s2",)
 
     def acceleration(self, angle, rate):
         p = self.params

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -19,8 +21,12 @@ class Cogging(Effect):
     param_names = ("amplitude_rad_s2", "period_rad", "phase_rad")
     # Periods from 0.5 deg (hundreds of slots) to 90 deg (4 poles).
     #: Parameters that make the effect do nothing.
-    null = {"amplitude_rad_s2": 0.0, "period_rad": 1.0, "phase_rad": 0.0}
-    bounds = {
+    null: ClassVar[dict[str, float]] = {
+        "amplitude_rad_s2": 0.0,
+        "period_rad": 1.0,
+        "phase_rad": 0.0,
+    }
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {
         "amplitude_rad_s2": (0.0, 200.0),
         "period_rad": (0.0087, 1.58),
         "phase_rad": (-2.0 * np.pi, 2.0 * np.pi),
@@ -28,7 +34,9 @@ class Cogging(Effect):
 
     def acceleration(self, angle, rate):
         p = self.params
-        return p["amplitude_rad_s2"] * np.sin(2.0 * np.pi * angle / p["period_rad"] + p["phase_rad"])
+        return p["amplitude_rad_s2"] * np.sin(
+            2.0 * np.pi * angle / p["period_rad"] + p["phase_rad"]
+        )
 
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -17,8 +19,8 @@ class Deadzone(Effect):
     name = "deadzone"
     param_names = ("width_digits",)
     #: Parameters that make the effect do nothing.
-    null = {"width_digits": 0.0}
-    bounds = {"width_digits": (0.0, 5000.0)}
+    null: ClassVar[dict[str, float]] = {"width_digits": 0.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"width_digits": (0.0, 5000.0)}
 
     def command(self, u):
         return np.sign(u) * np.maximum(np.abs(u) - self.params["width_digits"], 0.0)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -21,8 +21,8 @@ class InputDelay(Effect):
     name = "input_delay"
     param_names = ("delay_s",)
     #: Parameters that make the effect do nothing.
-    null = {"delay_s": 0.0}
-    bounds = {"delay_s": (0.0, 0.05)}
+    null: ClassVar[dict[str, float]] = {"delay_s": 0.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"delay_s": (0.0, 0.05)}
 
     def reset(self) -> None:
         steps = np.maximum(np.asarray(self.params["delay_s"], dtype=float), 0.0) / self.dt
@@ -54,9 +54,6 @@ class InputDelay(Effect):
     def guesses(cls, ctx) -> list[dict[str, float]]:
         """A grid of delays, 0.5 to 40 samples (the best is refined)."""
         steps = np.concatenate([np.arange(0.5, 12.0, 0.5), np.arange(12.0, 41.0, 2.0)])
-        return [{"delay_s": float(s * ctx.dt)} for s in steps if s * ctx.dt <= cls.bounds["delay_s"][1]]
-
-
-def delay_samples(delay_s: float, dt: float) -> int:
-    """Whole samples of a delay (for callers sizing buffers)."""
-    return int(math.floor(delay_s / dt))
+        return [
+            {"delay_s": float(s * ctx.dt)} for s in steps if s * ctx.dt <= cls.bounds["delay_s"][1]
+        ]

@@ -10,6 +10,8 @@ cannot produce.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -31,8 +33,11 @@ class LuGre(Effect):
     name = "lugre"
     param_names = ("accel_rad_s2", "presliding_rad")
     #: Parameters that make the effect do nothing.
-    null = {"accel_rad_s2": 0.0, "presliding_rad": 1.0}
-    bounds = {"accel_rad_s2": (0.0, 500.0), "presliding_rad": (1e-5, 0.05)}
+    null: ClassVar[dict[str, float]] = {"accel_rad_s2": 0.0, "presliding_rad": 1.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {
+        "accel_rad_s2": (0.0, 500.0),
+        "presliding_rad": (1e-5, 0.05),
+    }
 
     def reset(self) -> None:
         self._z = np.zeros(np.shape(self.params["presliding_rad"]))

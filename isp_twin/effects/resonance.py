@@ -8,6 +8,8 @@ The mode rings after every change of acceleration (breakaway, steps).
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -59,8 +61,12 @@ class Resonance(Effect):
     name = "resonance"
     param_names = ("freq_hz", "damping_ratio", "coupling")
     #: Parameters that make the effect do nothing.
-    null = {"freq_hz": 100.0, "damping_ratio": 0.1, "coupling": 0.0}
-    bounds = {"freq_hz": (1.0, 400.0), "damping_ratio": (0.002, 0.5), "coupling": (-2.0, 2.0)}
+    null: ClassVar[dict[str, float]] = {"freq_hz": 100.0, "damping_ratio": 0.1, "coupling": 0.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {
+        "freq_hz": (1.0, 400.0),
+        "damping_ratio": (0.002, 0.5),
+        "coupling": (-2.0, 2.0),
+    }
 
     def reset(self) -> None:
         self._phi, self._gamma = _discretize(
@@ -74,9 +80,7 @@ class Resonance(Effect):
         accel = np.zeros_like(rate) if self._last is None else (rate - self._last) / self.dt
         self._last = rate
         s = self._state
-        self._state = (
-            np.einsum("...ij,...j->...i", self._phi, s) + self._gamma * accel[..., None]
-        )
+        self._state = np.einsum("...ij,...j->...i", self._phi, s) + self._gamma * accel[..., None]
         return rate + self._state[..., 1]
 
     @classmethod
@@ -91,7 +95,7 @@ class Resonance(Effect):
         if band.size == 0:
             return [{"freq_hz": 50.0, "damping_ratio": 0.05, "coupling": 0.1}]
         # Smooth over 1 Hz so a single noise bin does not win.
-        width = max(1, int(round(1.0 / (freqs[1] - freqs[0]))))
+        width = max(1, round(1.0 / (freqs[1] - freqs[0])))
         smooth = np.convolve(spec, np.ones(width) / width, mode="same")
         peaks = []
         for i in band[np.argsort(smooth[band])[::-1]]:

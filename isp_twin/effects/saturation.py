@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -17,8 +19,8 @@ class Saturation(Effect):
     name = "saturation"
     param_names = ("limit_digits",)
     #: Parameters that make the effect do nothing.
-    null = {"limit_digits": float("inf")}
-    bounds = {"limit_digits": (1.0, 1e6)}
+    null: ClassVar[dict[str, float]] = {"limit_digits": float("inf")}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"limit_digits": (1.0, 1e6)}
 
     def command(self, u):
         lim = self.params["limit_digits"]

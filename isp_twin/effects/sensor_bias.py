@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -21,10 +23,13 @@ class SensorBias(Effect):
     name = "sensor_bias"
     param_names = ("bias_rad_s", "scale")
     #: Parameters that make the effect do nothing.
-    null = {"bias_rad_s": 0.0, "scale": 0.0}
-    bounds = {"bias_rad_s": (-1.0, 1.0), "scale": (-0.5, 0.5)}
+    null: ClassVar[dict[str, float]] = {"bias_rad_s": 0.0, "scale": 0.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {
+        "bias_rad_s": (-1.0, 1.0),
+        "scale": (-0.5, 0.5),
+    }
     #: Parameters not refined by the least-squares refit (see class doc).
-    frozen = ("scale",)
+    frozen: ClassVar[tuple[str, ...]] = ("scale",)
 
     def measure(self, rate):
         p = self.params

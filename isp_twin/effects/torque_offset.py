@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -18,8 +20,8 @@ class TorqueOffset(Effect):
     param_names = ("accel_rad_s2",)
     #: Plausible range of each parameter (fit bounds) [SI].
     #: Parameters that make the effect do nothing.
-    null = {"accel_rad_s2": 0.0}
-    bounds = {"accel_rad_s2": (-200.0, 200.0)}
+    null: ClassVar[dict[str, float]] = {"accel_rad_s2": 0.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"accel_rad_s2": (-200.0, 200.0)}
     # Exactly equivalent to shifting Ts and Tc of the + regimes down and of
     # the - regimes up (Eq. 5 has them per direction): only the local refit
     # from the current friction values makes it identifiable (the damped

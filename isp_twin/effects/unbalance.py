@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from isp_twin.effects import Effect, register
@@ -19,8 +21,11 @@ class Unbalance(Effect):
     name = "unbalance"
     param_names = ("amplitude_rad_s2", "phase_rad")
     #: Parameters that make the effect do nothing.
-    null = {"amplitude_rad_s2": 0.0, "phase_rad": 0.0}
-    bounds = {"amplitude_rad_s2": (0.0, 500.0), "phase_rad": (-2.0 * np.pi, 2.0 * np.pi)}
+    null: ClassVar[dict[str, float]] = {"amplitude_rad_s2": 0.0, "phase_rad": 0.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {
+        "amplitude_rad_s2": (0.0, 500.0),
+        "phase_rad": (-2.0 * np.pi, 2.0 * np.pi),
+    }
 
     def acceleration(self, angle, rate):
         p = self.params
@@ -35,4 +40,6 @@ class Unbalance(Effect):
         basis = np.stack([np.sin(angle), np.cos(angle)], axis=1)
         (cs, sn), *_ = np.linalg.lstsq(basis, acc, rcond=None)
         # A sin(y + phi) = A cos(phi) sin(y) + A sin(phi) cos(y)
-        return [{"amplitude_rad_s2": float(np.hypot(cs, sn)), "phase_rad": float(np.arctan2(sn, cs))}]
+        return [
+            {"amplitude_rad_s2": float(np.hypot(cs, sn)), "phase_rad": float(np.arctan2(sn, cs))}
+        ]
