@@ -19,16 +19,17 @@ class Cogging(Effect):
 
     name = "cogging"
     param_names = ("amplitude_rad_s2", "period_rad", "phase_rad")
-    # Periods from 0.5 deg (hundreds of slots) to 90 deg (4 poles).
     #: Parameters that make the effect do nothing.
     null: ClassVar[dict[str, float]] = {
         "amplitude_rad_s2": 0.0,
         "period_rad": 1.0,
         "phase_rad": 0.0,
     }
+    # Periods from 0.5 deg (hundreds of slots) to half a turn (two per turn;
+    # one per turn is `unbalance`).
     bounds: ClassVar[dict[str, tuple[float, float]]] = {
         "amplitude_rad_s2": (0.0, 200.0),
-        "period_rad": (0.0087, 1.58),
+        "period_rad": (0.0087, np.pi + 1e-9),
         "phase_rad": (-2.0 * np.pi, 2.0 * np.pi),
     }
 
@@ -52,17 +53,27 @@ class Cogging(Effect):
         hi = min(hi, span / 2.0)
         if hi <= lo:
             hi = lo * 2
-        freqs = np.arange(1.0 / hi, 1.0 / lo, 0.25 / max(span, 1e-9))
-        freqs = freqs[:4000]
+        freqs = np.arange(1.0 / hi, 1.0 / lo, 0.25 / max(span, 1e-9))[:4000]
+        # Cogging is locked to the motor's geometry: whole numbers of periods
+        # per turn are always tried (a motor spinning many turns makes the
+        # periodogram peaks too narrow for any affordable grid).
+        per_turn = np.arange(2, 721) / (2.0 * np.pi)
+        freqs = np.union1d(freqs, per_turn[(per_turn >= 1.0 / hi) & (per_turn <= 1.0 / lo)])
+        if angle.size > 20000:  # the periodogram costs frequencies x samples
+            keep = np.linspace(0, angle.size - 1, 20000).astype(int)
+            angle, acc = angle[keep], acc[keep]
         acc = acc - acc.mean()
-        phase = 2.0 * np.pi * np.outer(freqs, angle)
-        s, c = np.sin(phase), np.cos(phase)
-        ss, cc, sc = (s * s).sum(1), (c * c).sum(1), (s * c).sum(1)
-        ys, yc = s @ acc, c @ acc
-        det = np.maximum(ss * cc - sc * sc, 1e-12)
-        a = (cc * ys - sc * yc) / det
-        b = (ss * yc - sc * ys) / det
-        power = a * ys + b * yc
+        a, b, power = (np.empty(freqs.size) for _ in range(3))
+        for start in range(0, freqs.size, 256):  # bounded memory
+            part = slice(start, start + 256)
+            phase = 2.0 * np.pi * np.outer(freqs[part], angle)
+            s, c = np.sin(phase), np.cos(phase)
+            ss, cc, sc = (s * s).sum(1), (c * c).sum(1), (s * c).sum(1)
+            ys, yc = s @ acc, c @ acc
+            det = np.maximum(ss * cc - sc * sc, 1e-12)
+            a[part] = (cc * ys - sc * yc) / det
+            b[part] = (ss * yc - sc * ys) / det
+            power[part] = a[part] * ys + b[part] * yc
         out = []
         for i in np.argsort(power)[::-1]:
             if any(abs(freqs[i] - 1.0 / g["period_rad"]) < 1.0 / max(span, 1e-9) for g in out):
