@@ -9,7 +9,7 @@ import numpy as np
 from isp_twin.atomic import atomic_path, write_text_atomic
 from isp_twin.diagnosis.candidates import BASELINE
 from isp_twin.diagnosis.search import Diagnosis
-from isp_twin.diagnosis.selection import BLOCK, MIN_GAIN, Z_MIN
+from isp_twin.diagnosis.selection import BLOCK, MIN_GAIN, MIN_SHARE, Z_MIN
 from isp_twin.units import DEG
 
 __all__ = ["residual_series", "write_recording", "write_report"]
@@ -141,8 +141,8 @@ def write_report(diag: Diagnosis, path: Path, params_out: Path | None = None) ->
         "",
         (
             f"Acceptance rule: held-out MSE improvement > {Z_MIN:g} standard errors of its noise "
-            f"term (blocks of {BLOCK} samples), > {MIN_GAIN:g} x noise variance, and lower BIC "
-            "(docs/diagnosis.md)."
+            f"term (blocks of {BLOCK} samples), > {MIN_GAIN:g} x noise variance, >= "
+            f"{MIN_SHARE:.0%} of the error, and lower BIC (docs/diagnosis.md)."
         ),
         "",
         f"![residuals]({png.name})",

@@ -1,6 +1,6 @@
 """The acceptance rule: is a candidate's improvement real?
 
-A candidate effect is *significant* when all three hold:
+A candidate effect is *significant* when all four hold:
 
 1. Held-out improvement beyond chance: with the held-out residuals r0
    (without) and r1 (with the effect) and their difference ``delta = r0 -
@@ -16,7 +16,10 @@ A candidate effect is *significant* when all three hold:
    of the noise variance (noise floor squared). An effect that explains less
    than that is indistinguishable from fitting noise with 20+ parameters,
    whatever its z.
-3. Information criterion: its training BIC is lower than the model's without
+3. Material against the error: the MSE drops by at least `MIN_SHARE` = 2 %
+   of the baseline's held-out MSE. Where the model misses far more than the
+   noise (real data), a real but negligible effect is not worth a term.
+4. Information criterion: its training BIC is lower than the model's without
    it (BIC = M ln(SSE/M) + k ln M; the effect's extra parameters must pay for
    themselves).
 
@@ -37,6 +40,7 @@ __all__ = ["BLOCK", "MIN_GAIN", "Z_MIN", "Verdict", "judge", "select"]
 Z_MIN = 3.0
 BLOCK = 25
 MIN_GAIN = 0.05
+MIN_SHARE = 0.02
 
 
 @dataclass(frozen=True)
@@ -93,7 +97,9 @@ def judge(
     rmse = float(np.sqrt(np.mean(np.concatenate([np.asarray(a) for a in after]) ** 2)))
     dbic = float(bic_after - bic_before)
     gain = mean / noise_floor**2 if noise_floor > 0 else float("inf")
-    ok_z, ok_gain, ok_bic = z > z_min, gain > min_gain, dbic < 0
+    mse_before = float(np.mean(np.concatenate(before) ** 2))
+    share = mean / mse_before if mse_before > 0 else 0.0
+    ok_z, ok_gain, ok_bic = z > z_min, gain > min_gain and share >= MIN_SHARE, dbic < 0
     if ok_z and ok_gain and ok_bic:
         reason = (
             f"held-out MSE lower by {z:.1f} standard errors ({gain:.2g} x noise variance), "
@@ -101,8 +107,10 @@ def judge(
         )
     elif not ok_z:
         reason = f"held-out improvement {z:.1f} standard errors, needs > {z_min:g}"
-    elif not ok_gain:
+    elif gain <= min_gain:
         reason = f"held-out MSE gain {gain:.2g} x noise variance, needs > {min_gain:g}"
+    elif not ok_gain:
+        reason = f"held-out MSE gain {share:.1%} of the error, needs >= {MIN_SHARE:.0%}"
     else:
         reason = f"BIC higher by {dbic:.1f}"
     return Verdict(name, rmse, float(z), dbic, ok_z and ok_gain and ok_bic, reason)

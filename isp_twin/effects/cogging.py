@@ -48,11 +48,21 @@ class Cogging(Effect):
             return [{"amplitude_rad_s2": 0.0, "period_rad": 0.1, "phase_rad": 0.0}]
         span = float(np.ptp(angle))
         lo, hi = cls.bounds["period_rad"]
+        # A ripple the axis crosses in fewer than 4 samples is aliased in
+        # 1 kHz data (and in a per-sample model): only resolvable periods.
+        step = float(np.quantile(np.abs(ctx.rate[ctx.moving]), 0.9)) * ctx.dt
+        lo = max(lo, 4.0 * step)
         # At least two periods inside the travelled range; resolution 1/4 of a
         # period shift across the range.
         hi = min(hi, span / 2.0)
         if hi <= lo:
-            hi = lo * 2
+            return [
+                {
+                    "amplitude_rad_s2": 0.0,
+                    "period_rad": float(min(2 * lo, cls.bounds["period_rad"][1])),
+                    "phase_rad": 0.0,
+                }
+            ]
         freqs = np.arange(1.0 / hi, 1.0 / lo, 0.25 / max(span, 1e-9))[:4000]
         # Cogging is locked to the motor's geometry: whole numbers of periods
         # per turn are always tried (a motor spinning many turns makes the
