@@ -158,11 +158,11 @@ def execute(args: argparse.Namespace) -> int:
     report_dir = args.report or (
         args.out.parent if args.out is not None else Path("diagnosis_report")
     )
-    stem = args.out.stem if args.out is not None else "diagnosis"
-    report = write_report(diag, Path(report_dir) / f"{stem}_diagnosis.md", args.out)
+    prefix = f"{args.out.stem}_" if args.out is not None else ""
+    report = write_report(diag, Path(report_dir) / f"{prefix}diagnosis.md", args.out)
     print(f"report written to {report}")
     if not args.no_recording:
-        path = args.recording or Path(report_dir) / f"{stem}_residuals.rrd"
+        path = args.recording or Path(report_dir) / f"{prefix}residuals.rrd"
         write_recording(diag, path)
         print(f"recording written to {path}  (open it with: rerun {path})")
     if args.json is not None:
