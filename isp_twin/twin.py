@@ -92,25 +92,39 @@ class PhysicalAxis:
     alpha: np.ndarray
 
     @classmethod
-    def from_rate_params(cls, rate: RateParams, inertia: float, dt: float) -> "PhysicalAxis":
-        """Map Eq. 6's per-sample rate form to torques by the exact zero-order hold.
+    def from_rate_params(
+        cls, rate: RateParams, inertia: float, dt: float, discretization: str = "zoh"
+    ) -> "PhysicalAxis":
+        """Map Eq. 6's per-sample rate form to torques.
 
+        ``"zoh"``, the continuous-time meaning (exact zero-order hold):
         a = exp(−η·dt/J) gives η = −J·ln(a)/dt; a torque held over one sample
-        changes the rate by g = (1 − a)/η per N·m; so drive_gain = gain/g,
-        static = static_rate/g, coulomb = coulomb_rate/g; alpha is unchanged.
+        changes the rate by g = (1 − a)/η per N·m.
+        ``"euler"``, what a simulator stepping by explicit Euler with step dt
+        must use to reproduce Eq. 6 sample for sample: a = 1 − η·dt/J, so
+        η = J·(1 − a)/dt, and g = dt/J (the paper's own "b = 1/J").
+        Either way drive_gain = gain/g, static = static_rate/g,
+        coulomb = coulomb_rate/g; alpha is unchanged.
 
         Args:
             rate: one axis's rate-form parameters, arrays (4,).
             inertia: J about the joint axis [kg·m²].
             dt: the sample period the rate form refers to [s].
+            discretization: "zoh" or "euler".
         """
         if not inertia > 0.0:
             raise ParameterError(f"inertia must be positive, got {inertia}")
         pole = np.asarray(rate.pole, dtype=float)
         if pole.shape != (4,) or np.any((pole <= 0.0) | (pole >= 1.0)):
             raise ParameterError(f"pole a must be 4 values in (0, 1), got {pole}")
-        viscous = -inertia * np.log(pole) / dt
-        g = (1.0 - pole) / viscous
+        if discretization == "zoh":
+            viscous = -inertia * np.log(pole) / dt
+            g = (1.0 - pole) / viscous
+        elif discretization == "euler":
+            viscous = inertia * (1.0 - pole) / dt
+            g = np.full(4, dt / inertia)
+        else:
+            raise ParameterError(f"discretization must be 'zoh' or 'euler', got {discretization!r}")
         return cls(
             inertia=float(inertia),
             viscous=viscous,
@@ -249,10 +263,17 @@ class Twin:
 
         # Effective inertia about each gimbal axis at qpos0 (dof_M0: the
         # diagonal of the joint-space inertia), so the twin and Eq. 6 agree.
+        # The twin steps by explicit Euler (docs/axis_model.md); when its step
+        # is the parameters' sample period, the Euler map makes every twin
+        # step an Eq. 6 step; otherwise the continuous-time (ZOH) map applies.
+        same_step = abs(self.dt - params.sample_time_s) <= 1e-12
         self.axes: dict[str, PhysicalAxis] = {}
         for n, d in zip(GIMBALS, dofs):
             self.axes[n] = PhysicalAxis.from_rate_params(
-                params.axis(n).rate_params(), float(m.dof_M0[d]), params.sample_time_s
+                params.axis(n).rate_params(),
+                float(m.dof_M0[d]),
+                params.sample_time_s,
+                "euler" if same_step else "zoh",
             )
         # Per slot, plain Python lists: the per-step loop is scalar and lean.
         tab = []
