@@ -59,7 +59,7 @@ def lm_steps(
     upper: np.ndarray,
     scale: np.ndarray,
     max_iter: int = 8,
-    rtol: float = 1e-4,
+    rtol: float = 1e-3,
     rel_step: float = 1e-3,
     scan: Sequence[int] = (),
     scan_factors: Sequence[float] = (0.6, 0.7, 0.8, 0.9, 0.95, 1.05, 1.1, 1.2, 1.35, 1.5),
