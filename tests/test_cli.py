@@ -81,3 +81,39 @@ def test_open_loop_run_writes_json_and_recording(capsys, tmp_path):
     assert rrd.stat().st_size > 0
     printed = capsys.readouterr().out
     assert "11.98" in printed  # the paper's peak is shown beside the twin's
+
+
+def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from isp_twin.recording import verify_recording
+
+    scenario = tmp_path / "long.yaml"
+    scenario.write_text(
+        "name: long\nkind: closed_loop\nduration_s: 300.0\n"
+        "turntable:\n  table_yaw: {amplitude_deg: 3.0, freq_hz: 0.16666666666666666}\n"
+    )
+    rrd = tmp_path / "long.rrd"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "isp_twin.cli", "run", str(scenario), "--recording", str(rrd)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        # "parameters ..." is printed just before the simulation starts.
+        for line in proc.stdout:
+            if line.startswith("parameters"):
+                break
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    verify_recording(rrd)
+    assert not list(tmp_path.glob("*.part"))
