@@ -22,11 +22,10 @@ Discrete stick-slip, the decisions Eq. 6 leaves open:
 * Extra effects (`isp_twin.effects`), applied per sample as in the twin: the
   command passes through each ``command`` hook, the ``acceleration`` hooks
   (at the angle that selects the half-plane and the rate of the previous
-  sample) add ``accel*T*(1-a)/(-ln a)`` to the drive, and the rate is
-  reported through the ``measure`` hooks (gyro errors, structural modes).
-  The factor is the exact zero-order hold of the twin (docs/axis_model.md:
-  a torque held over a sample raises the rate by (1-a)/eta per N·m, and
-  eta = -J ln(a)/T), so an effect's torque/J means the same in both engines.
+  sample) add ``accel*T`` to the drive, and the rate is reported through
+  the ``measure`` hooks (gyro errors, structural modes). ``accel*T`` is what
+  the twin's explicit-Euler step gives a torque J·accel (docs/axis_model.md,
+  section 5), so an effect's torque/J means the same in both engines.
 """
 
 from __future__ import annotations
@@ -146,10 +145,8 @@ def simulate(
     # One gather per step: row*4 + regime indexes the (P*4, 5) table.
     table = np.stack([pole, gain, static, coulomb, alpha], axis=-1).reshape(n_sets * 4, 5)
     gain_flat = table[:, 1]
-    # Rate gained per sample from a constant acceleration, per (set, regime),
-    # over dt: the twin's zero-order hold (module doc); -> 1 as a -> 1.
-    a_flat = np.clip(table[:, 0], 1e-12, 1.0 - 1e-12)
-    hold = (1.0 - a_flat) / -np.log(a_flat) * dt
+    # Rate gained per sample from a constant acceleration: the twin's Euler step.
+    hold = np.full(n_sets * 4, dt)
     base = rows * 4
     fixed_side = None if side is None else float(side)
     for k in range(1, n):
