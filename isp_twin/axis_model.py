@@ -145,8 +145,6 @@ def simulate(
     # One gather per step: row*4 + regime indexes the (P*4, 5) table.
     table = np.stack([pole, gain, static, coulomb, alpha], axis=-1).reshape(n_sets * 4, 5)
     gain_flat = table[:, 1]
-    # Rate gained per sample from a constant acceleration: the twin's Euler step.
-    hold = np.full(n_sets * 4, dt)
     base = rows * 4
     fixed_side = None if side is None else float(side)
     for k in range(1, n):
@@ -159,20 +157,17 @@ def simulate(
         # Regime index as `regime_index`: 2*(angle <= 0) + (direction < 0).
         side = base + 2 * ((side_angle if fixed_side is None else fixed_side) <= 0.0)
         moving = w != 0.0
-        # At rest the drive's sign picks the direction; gains are positive, so
-        # the + regime of the current side decides it (exact without extra_rate).
-        probe = gain_flat[side] * uk
-        if more is not None:
-            probe = probe + more
-        if acc is not None:
-            probe = probe + acc * hold[side]
-        idx = side + np.where(moving, w < 0.0, probe < 0.0)
-        a, g, ts, tc, al = table[idx].T
-        drive = g * uk
+        # Moving, the rate's sign picks the regime. At rest Eq. 5's T_m is the
+        # motor's: the command's sign picks the gain, and the total drive
+        # (motor + effects) must exceed the breakaway Ts of the direction it
+        # pushes, as the twin's direction-dependent stiction constraint does.
+        drive = gain_flat[side + np.where(moving, w < 0.0, uk < 0.0)] * uk
         if more is not None:
             drive = drive + more
         if acc is not None:
-            drive = drive + acc * hold[idx]
+            drive = drive + acc * dt
+        idx = side + np.where(moving, w < 0.0, drive < 0.0)
+        a, _, ts, tc, al = table[idx].T
         slide = np.sign(w) * stribeck_magnitude(np.abs(w), ts, tc, al)
         w_move = a * w + drive - slide
         # Friction cannot reverse the motion: a sign change ends at rest.

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from isp_twin.axis_model import simulate
+from isp_twin.effects import make_effect
 from isp_twin.parameters import ParameterSet
 from isp_twin.units import DEG
 
@@ -117,9 +118,11 @@ def simulate_open_loop(
     t = np.arange(n) * dt
     u = command_signal(t, amplitude_digits, freq_hz, offset_digits)
     if engine == "fast":
+        spec = params.axis(axis)
         r = simulate(
-            params.axis(axis).rate_params(), u, dt,
+            spec.rate_params(), u, dt,
             angle0=initial_angle_rad, angle_limit=angle_limit_rad,
+            effects=[make_effect(e, dt) for e in spec.effects],
         )
         return OpenLoopResponse(t, u, r.omega, r.angle, axis, engine)
 
