@@ -14,25 +14,18 @@ figure, recording and JSON are in DIR.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import time
 from pathlib import Path
+
+# The sibling script (run as a script, benchmarks/ is on sys.path) owns the
+# data location, the column mapping and the catalogue prior.
+from identify_hsm150 import MAP, data_files, prior
 
 from isp_twin.cli import main as cli
 from isp_twin.parameters import save_parameters
 
-HERE = Path(__file__).resolve().parent
-DATA = HERE.parents[1] / "shared" / "data" / "hsm150"
-MAP = ["t=data:0", "u=data:4", "omega=data:3*rad/s", "theta=data:2*rad"]
 TRAIN = ["idf_neg_0.04_1", "idf_pos_0.06_1", "idf_neg_0.05_1", "idf_pos_0.07_1"]
 HOLDOUT = ["idf_neg_0.045_1", "idf_pos_0.065_1"]
-
-
-def _prior(folder: Path) -> Path:
-    spec = importlib.util.spec_from_file_location("identify_hsm150", HERE / "identify_hsm150.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return save_parameters(module.prior(), folder / "hsm150_prior.yaml")
 
 
 def main() -> None:
@@ -44,13 +37,12 @@ def main() -> None:
     parser.add_argument("--max-rounds", type=int, default=2)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    params = args.params or _prior(args.out)
-    files = lambda names: [str(DATA / f"{n}.mat") for n in names]
+    params = args.params or save_parameters(prior(), args.out / "hsm150_prior.yaml")
     argv = [
         "diagnose",
-        *files(args.train),
+        *data_files(args.train),
         "--holdout",
-        *files(args.holdout),
+        *data_files(args.holdout),
         "--params",
         str(params),
         "--side",

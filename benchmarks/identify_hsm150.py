@@ -34,7 +34,13 @@ import numpy as np
 from isp_twin.cli import main as cli
 from isp_twin.identification import Settings, simulate_data
 from isp_twin.measured import load_measured, mapping_from_options
-from isp_twin.parameters import AxisParams, ParameterSet, RegimeParams, load_parameters, save_parameters
+from isp_twin.parameters import (
+    AxisParams,
+    ParameterSet,
+    RegimeParams,
+    load_parameters,
+    save_parameters,
+)
 from isp_twin.units import DEG
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "hsm150"
@@ -46,13 +52,24 @@ B_CATALOGUE = 7.03e-5  # N·m·s/rad, README
 T = 1e-3  # s
 
 
+def data_files(names: list[str]) -> list[str]:
+    """Paths of the named runs (file stems) of the HSM150 data folder."""
+    return [str(DATA / f"{n}.mat") for n in names]
+
+
 def prior() -> ParameterSet:
     b = T / J_CATALOGUE / DEG  # (deg/s) per N·m per sample
     a = 1 - B_CATALOGUE * T / J_CATALOGUE
     reg = RegimeParams(a=a, b=b, Ke=1.0, Ts=0.025, Tc=0.02, alpha=0.01)
-    axis = AxisParams(regimes=(reg,) * 4, note="HSM150 catalogue prior (J, B), Ke = 1: command is torque")
-    return ParameterSet(name="hsm150_prior", axes={"inner_az": axis}, sample_time_s=T,
-                        description="HSM150 prior from catalogue J and B (benchmarks/identify_hsm150.py)")
+    axis = AxisParams(
+        regimes=(reg,) * 4, note="HSM150 catalogue prior (J, B), Ke = 1: command is torque"
+    )
+    return ParameterSet(
+        name="hsm150_prior",
+        axes={"inner_az": axis},
+        sample_time_s=T,
+        description="HSM150 prior from catalogue J and B (benchmarks/identify_hsm150.py)",
+    )
 
 
 def main() -> None:
@@ -64,11 +81,26 @@ def main() -> None:
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     prior_path = save_parameters(prior(), args.out / "hsm150_prior.yaml")
-    files = lambda names: [str(DATA / f"{n}.mat") for n in names]  # noqa: E731
-    argv = ["identify", *files(TRAIN), "--validate", *files(VALIDATE), "--out", str(args.out / "hsm150.yaml"),
-            "--prior", str(prior_path), "--side", "right", "--json", str(args.out / "hsm150.json"),
-            "--generations", str(args.generations), "--population", str(args.population),
-            "--refine-evaluations", str(args.refine_evaluations)]
+    argv = [
+        "identify",
+        *data_files(TRAIN),
+        "--validate",
+        *data_files(VALIDATE),
+        "--out",
+        str(args.out / "hsm150.yaml"),
+        "--prior",
+        str(prior_path),
+        "--side",
+        "right",
+        "--json",
+        str(args.out / "hsm150.json"),
+        "--generations",
+        str(args.generations),
+        "--population",
+        str(args.population),
+        "--refine-evaluations",
+        str(args.refine_evaluations),
+    ]
     for m in MAP:
         argv += ["--map", m]
     print("isp-twin " + " ".join(argv))
@@ -82,9 +114,11 @@ def main() -> None:
     axis = ps.axis("inner_az")
     for name in ("R+", "R-"):
         r, ci = axis.regime(name), axis.ci95[["R+", "R-", "L+", "L-"].index(name)]
-        print(f"{name}: a={r.a:.6g}±{ci.a:.2g}  J_eff={J_CATALOGUE / r.Ke:.4g} kg·m² (Ke={r.Ke:.4g}±{ci.Ke:.2g})  "
-              f"Ts={r.Ts:.4g}±{ci.Ts:.2g} N·m  Tc={r.Tc:.4g}±{ci.Tc:.2g} N·m  alpha={r.alpha:.3g} 1/(deg/s)  "
-              f"B_eff={(1 - r.a) * J_CATALOGUE / r.Ke / T:.3g} N·m·s/rad")
+        print(
+            f"{name}: a={r.a:.6g}±{ci.a:.2g}  J_eff={J_CATALOGUE / r.Ke:.4g} kg·m² (Ke={r.Ke:.4g}±{ci.Ke:.2g})  "
+            f"Ts={r.Ts:.4g}±{ci.Ts:.2g} N·m  Tc={r.Tc:.4g}±{ci.Tc:.2g} N·m  alpha={r.alpha:.3g} 1/(deg/s)  "
+            f"B_eff={(1 - r.a) * J_CATALOGUE / r.Ke / T:.3g} N·m·s/rad"
+        )
     print("RMS rate error [rad/s]:")
     for role in ("rmse_train", "rmse_validation"):
         for k, v in summary[role].items():
@@ -93,7 +127,9 @@ def main() -> None:
     rate = axis.rate_params()
     mapping = mapping_from_options(MAP)
     settings = Settings(side="right")
-    print("residual (model - measured) [rad/s]: mean over 0-1 s, 1-10 s, 10-11 s, 11-20 s; lag-1 corr")
+    print(
+        "residual (model - measured) [rad/s]: mean over 0-1 s, 1-10 s, 10-11 s, 11-20 s; lag-1 corr"
+    )
     for n in TRAIN + VALIDATE:
         d = load_measured(DATA / f"{n}.mat", mapping)
         e = simulate_data(rate, d, settings.side, settings.rest_rate_deg_s).omega - d.omega

@@ -28,7 +28,14 @@ from isp_twin.units import DEG
 
 def wrong_prior(axis):
     regs = [
-        dataclasses.replace(r, a=1 - (1 - r.a) * 1.3, Ke=r.Ke * 0.7, Ts=r.Ts * 1.4, Tc=r.Tc * 0.75, alpha=r.alpha * 1.3)
+        dataclasses.replace(
+            r,
+            a=1 - (1 - r.a) * 1.3,
+            Ke=r.Ke * 0.7,
+            Ts=r.Ts * 1.4,
+            Tc=r.Tc * 0.75,
+            alpha=r.alpha * 1.3,
+        )
         for r in axis.regimes
     ]
     return dataclasses.replace(axis, regimes=tuple(regs))
@@ -39,15 +46,25 @@ def main() -> None:
     parser.add_argument("--generations", type=int, default=Settings.generations)
     parser.add_argument("--population", type=int, default=Settings.population)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--coverage", type=int, default=0, metavar="N",
-                        help="also count, over N noise seeds, how often the truth is inside the 95 %% CI")
+    parser.add_argument(
+        "--coverage",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also count, over N noise seeds, how often the truth is inside the 95 %% CI",
+    )
     args = parser.parse_args()
     params = load_parameters(default_parameters_path())
     truth = params.axis("inner_az")
     x_true = truth.rate_params().to_vector()
     settings = Settings(seed=args.seed, generations=args.generations, population=args.population)
-    for label, noise, lsb in (("noise-free", 0.0, 0.0), ("realistic noise", GYRO_NOISE_DEG_S, RESOLVER_LSB_DEG)):
-        data = generate_set(params, "inner_az", gyro_noise_deg_s=noise, resolver_lsb_deg=lsb, seed=args.seed)
+    for label, noise, lsb in (
+        ("noise-free", 0.0, 0.0),
+        ("realistic noise", GYRO_NOISE_DEG_S, RESOLVER_LSB_DEG),
+    ):
+        data = generate_set(
+            params, "inner_az", gyro_noise_deg_s=noise, resolver_lsb_deg=lsb, seed=args.seed
+        )
         start = time.perf_counter()
         res = identify(data, wrong_prior(truth), settings)
         wall = time.perf_counter() - start
@@ -62,12 +79,19 @@ def main() -> None:
     if args.coverage:
         inside = []
         for seed in range(args.seed + 1, args.seed + 1 + args.coverage):
-            data = generate_set(params, "inner_az", gyro_noise_deg_s=GYRO_NOISE_DEG_S,
-                                resolver_lsb_deg=RESOLVER_LSB_DEG, seed=100 * seed)
+            data = generate_set(
+                params,
+                "inner_az",
+                gyro_noise_deg_s=GYRO_NOISE_DEG_S,
+                resolver_lsb_deg=RESOLVER_LSB_DEG,
+                seed=100 * seed,
+            )
             res = identify(data, wrong_prior(truth), dataclasses.replace(settings, seed=seed))
             inside.extend((np.abs(res.vector - x_true) <= res.ci95)[res.identifiable])
-        print(f"coverage over {args.coverage} noise seeds: truth inside the 95 % CI for "
-              f"{sum(inside)}/{len(inside)} = {100 * np.mean(inside):.1f} % of the identifiable quantities")
+        print(
+            f"coverage over {args.coverage} noise seeds: truth inside the 95 % CI for "
+            f"{sum(inside)}/{len(inside)} = {100 * np.mean(inside):.1f} % of the identifiable quantities"
+        )
 
 
 if __name__ == "__main__":

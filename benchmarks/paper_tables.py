@@ -52,8 +52,11 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=10)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--scan-scale", type=float, nargs="+", default=None, metavar="SCALE")
-    parser.add_argument("--output", type=Path,
-                        default=Path(__file__).resolve().parents[1] / "docs" / "paper_vs_twin.md")
+    parser.add_argument(
+        "--output",
+        type=Path,
+        default=Path(__file__).resolve().parents[1] / "docs" / "paper_vs_twin.md",
+    )
     args = parser.parse_args()
     if args.scan_scale:
         scan_scale(args.scan_scale, args.runs, args.jobs)

@@ -36,7 +36,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from isp_twin.effects import Effect
-
 from isp_twin.friction import stribeck_magnitude
 from isp_twin.parameters import RateParams
 

@@ -148,9 +148,7 @@ def run_campaign(
     first = scenario.seed if first_seed is None else first_seed
     seeds = tuple(range(first, first + n_runs))
     work = [
-        (scenario.with_nfc(nfc), params, seed, axis)
-        for nfc in VARIANTS.values()
-        for seed in seeds
+        (scenario.with_nfc(nfc), params, seed, axis) for nfc in VARIANTS.values() for seed in seeds
     ]
     labels = [label for label in VARIANTS for _ in seeds]
     if jobs > 1:
@@ -169,8 +167,8 @@ def run_campaign(
             max_abs_error_deg_s=tuple(r[1] for r in rows),
             rms_error_deg_s=tuple(r[2] for r in rows),
         )
-    params_file = str(params.path) if params is not None and params.path else str(
-        scenario.parameters_path
+    params_file = (
+        str(params.path) if params is not None and params.path else str(scenario.parameters_path)
     )
     return CampaignResult(
         scenario=scenario.name,
@@ -275,7 +273,7 @@ def comparison_markdown(c: Comparison) -> str:
         trends.append(row[0] > row[1] > row[2])
     out += [
         "",
-        "Trend \"smaller amplitude -> worse isolation\" (J decreasing with amplitude at each "
+        'Trend "smaller amplitude -> worse isolation" (J decreasing with amplitude at each '
         f"frequency): 1/6 Hz {_verdict(trends[0])}, 0.5 Hz {_verdict(trends[1])}.",
         "",
         "## Tables 5 and 6: PI vs PI+NFC",
@@ -284,10 +282,14 @@ def comparison_markdown(c: Comparison) -> str:
         "| twin range | twin variance | paper variance |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for label, table, res in (("Table 5 tracking 0.5 Hz", TABLE5, c.table5),
-                              ("Table 6 isolation 1/6 Hz", TABLE6, c.table6)):
-        for variant, avg, var in (("PI", table.pi_average, table.pi_variance),
-                                  ("PI+NFC", table.pi_nfc_average, table.pi_nfc_variance)):
+    for label, table, res in (
+        ("Table 5 tracking 0.5 Hz", TABLE5, c.table5),
+        ("Table 6 isolation 1/6 Hz", TABLE6, c.table6),
+    ):
+        for variant, avg, var in (
+            ("PI", table.pi_average, table.pi_variance),
+            ("PI+NFC", table.pi_nfc_average, table.pi_nfc_variance),
+        ):
             s = res.variants[variant].stats
             out.append(
                 f"| {label} | {variant} | {avg:.2f} | {s.average:.2f} | {s.best:.2f} | "
@@ -299,8 +301,10 @@ def comparison_markdown(c: Comparison) -> str:
         "target (+-10 points) |",
         "|---|---|---|---|---|",
     ]
-    for label, table, res in (("Table 5 tracking", TABLE5, c.table5),
-                              ("Table 6 isolation", TABLE6, c.table6)):
+    for label, table, res in (
+        ("Table 5 tracking", TABLE5, c.table5),
+        ("Table 6 isolation", TABLE6, c.table6),
+    ):
         paper = relative_reduction(table.pi_average, table.pi_nfc_average)
         twin = res.relative_reduction_percent
         out.append(

@@ -72,14 +72,16 @@ def table_angles(motion: Motion, t: np.ndarray) -> np.ndarray:
     return amp / w * (np.sin(w * t + phase) - math.sin(phase))
 
 
-def build_rate_loop(scenario: Scenario, axis: str, nfc_params: ParameterSet,
-                    dt: float) -> InnerRateLoop:
+def build_rate_loop(
+    scenario: Scenario, axis: str, nfc_params: ParameterSet, dt: float
+) -> InnerRateLoop:
     """The inner rate loop of `axis` as the scenario configures it."""
     cfg = scenario.controller.axis(axis)
     gains = cfg.gains
     notch = (
         NotchFilter(cfg.notch.freq_hz, cfg.notch.q, cfg.notch.depth, dt)
-        if cfg.notch.enabled else None
+        if cfg.notch.enabled
+        else None
     )
     nfc = (
         FrictionFeedForward(
@@ -88,7 +90,8 @@ def build_rate_loop(scenario: Scenario, axis: str, nfc_params: ParameterSet,
             taps=cfg.nfc.taps,
             rest_rate=cfg.nfc.rest_rate_deg_s * DEG,
         )
-        if cfg.nfc.enabled else None
+        if cfg.nfc.enabled
+        else None
     )
     return InnerRateLoop(
         PIController(gains.kp_digit_per_count, gains.ki_digit_per_count, cfg.bound_digits),
@@ -160,8 +163,12 @@ def run_scenario(
     loops = [build_rate_loop(scenario, a, nfc_params, dt) for a in INNER_AXES]
     f = scenario.follower
     followers = [
-        OuterFollower(f.kp_digit_per_deg / DEG, f.ki_digit_per_deg / DEG,
-                      f.kd_digit_per_deg_s / DEG, f.bound_digits)
+        OuterFollower(
+            f.kp_digit_per_deg / DEG,
+            f.ki_digit_per_deg / DEG,
+            f.kd_digit_per_deg_s / DEG,
+            f.bound_digits,
+        )
         for _ in OUTER_AXES
     ]
     follow = f.enabled
@@ -171,8 +178,16 @@ def run_scenario(
     twin.reset(initial or None)
     for res, a in zip(resolvers, INNER_AXES + OUTER_AXES):
         res.reset(initial.get(a, 0.0))
-    inner_signals = ("omega_carrier", "omega_inertial", "omega_relative", "gyro", "command",
-                     "friction", "nfc", "regime")
+    inner_signals = (
+        "omega_carrier",
+        "omega_inertial",
+        "omega_relative",
+        "gyro",
+        "command",
+        "friction",
+        "nfc",
+        "regime",
+    )
     columns = [f"{a}/{sig}" for a in INNER_AXES for sig in inner_signals]
     columns += [f"{a}/{sig}" for a in OUTER_AXES for sig in ("follow_error", "command")]
     joint_names = TABLE_AXES + INNER_AXES + OUTER_AXES  # the twin's gimbal order after the table
@@ -215,8 +230,16 @@ def run_scenario(
                         f"{100 * SATURATION_LIMIT:.0f} % of the time; check the controller gains"
                     )
                 command[i] = u
-                row[8 * i : 8 * i + 8] = (wc[i], w1[i], rate[i], gyros[i].to_rate(counts), u,
-                                          friction[i], u_nfc, regime[i])
+                row[8 * i : 8 * i + 8] = (
+                    wc[i],
+                    w1[i],
+                    rate[i],
+                    gyros[i].to_rate(counts),
+                    u,
+                    friction[i],
+                    u_nfc,
+                    regime[i],
+                )
             for j in range(2):
                 # outer_az follows inner_az, outer_el follows inner_el; with the
                 # follower off the outer gimbal holds its own zero instead.
@@ -242,9 +265,7 @@ def run_scenario(
 
     buf = buf[:done]
     signals = {name: buf[:, c].copy() for c, name in enumerate(columns)}
-    joint_angles = {
-        name: buf[:, len(columns) + c].copy() for c, name in enumerate(joint_names)
-    }
+    joint_angles = {name: buf[:, len(columns) + c].copy() for c, name in enumerate(joint_names)}
     t = t[:done]
     metrics = run_metrics(t, signals, scenario.skip_s)
     step = scenario.record.decimation

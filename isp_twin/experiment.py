@@ -166,7 +166,9 @@ def generate_openloop(
         )
     if engine not in ("fast", "twin"):
         raise ParameterError(f"engine '{engine}' unknown; allowed: fast, twin")
-    exc = Excitation(amplitude_digits, freq_hz, offset_digits, initial_angle_deg, n_samples, dt, name)
+    exc = Excitation(
+        amplitude_digits, freq_hz, offset_digits, initial_angle_deg, n_samples, dt, name
+    )
     t, u = exc.command()
     run = _run_fast if engine == "fast" else _run_twin
     omega, angle = run(params, axis, exc, u)

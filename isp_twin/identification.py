@@ -205,7 +205,9 @@ def side_angle(data: MeasuredData, side: str = "measured") -> np.ndarray:
     raise ParameterError(f"side '{side}' unknown; allowed: {', '.join(SIDES)}")
 
 
-def regime_visits(data: Sequence[MeasuredData], side: str = "measured", rest_rate_deg_s: float = 0.1) -> np.ndarray:
+def regime_visits(
+    data: Sequence[MeasuredData], side: str = "measured", rest_rate_deg_s: float = 0.1
+) -> np.ndarray:
     """Moving samples (|rate| above the rest level) per regime, shape (4,)."""
     counts = np.zeros(4, dtype=int)
     for d in data:
@@ -219,7 +221,9 @@ def _omega0(d: MeasuredData, rest: float) -> float:
     return 0.0 if abs(d.omega[0]) <= rest else float(d.omega[0])
 
 
-def simulate_data(rate: RateParams, d: MeasuredData, side: str = "measured", rest_rate_deg_s: float = 0.1):
+def simulate_data(
+    rate: RateParams, d: MeasuredData, side: str = "measured", rest_rate_deg_s: float = 0.1
+):
     """Eq. 6 driven by the run's command and measured angle; `AxisResponse`."""
     return simulate(
         rate,
@@ -231,7 +235,12 @@ def simulate_data(rate: RateParams, d: MeasuredData, side: str = "measured", res
     )
 
 
-def residuals(rate: RateParams, data: Sequence[MeasuredData], side: str = "measured", rest_rate_deg_s: float = 0.1) -> np.ndarray:
+def residuals(
+    rate: RateParams,
+    data: Sequence[MeasuredData],
+    side: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+) -> np.ndarray:
     """Simulated minus measured rate [rad/s], sample 0 of each set left out.
 
     Shape (P, M) for batched params (M = total samples), else (M,).
@@ -242,7 +251,12 @@ def residuals(rate: RateParams, data: Sequence[MeasuredData], side: str = "measu
     return np.concatenate(parts, axis=-1)
 
 
-def rmse(rate: RateParams, data: Sequence[MeasuredData], side: str = "measured", rest_rate_deg_s: float = 0.1) -> float | np.ndarray:
+def rmse(
+    rate: RateParams,
+    data: Sequence[MeasuredData],
+    side: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+) -> float | np.ndarray:
     """Eq. 9: RMS rate error over all sets at once [rad/s]."""
     e = residuals(rate, data, side, rest_rate_deg_s)
     return np.sqrt(np.mean(e**2, axis=-1))
@@ -447,7 +461,9 @@ def identify(
             f"{', '.join(map(str, visits))}); nothing to identify"
         )
     free = np.repeat(visited, 5)
-    x_init = equation_error_estimate(data, prior_rate, s.side, s.rest_rate_deg_s, s.min_regime_samples)
+    x_init = equation_error_estimate(
+        data, prior_rate, s.side, s.rest_rate_deg_s, s.min_regime_samples
+    )
     base = prior_rate.to_vector()
     base[free] = x_init.to_vector()[free]
     x0 = base[free]
@@ -538,9 +554,13 @@ def identify(
         history.append(float(np.sqrt(2 * ls.cost / ls.fun.size)))
         status += f"; least-squares refinement ({ls.nfev} evaluations, {ls.message.rstrip('.')})"
     b = np.array([r.b for r in prior.regimes])
-    x_best, moved = _robust_to_storage(x_best, lambda xs: rmse(full(xs), data, s.side, rest), free, b)
+    x_best, moved = _robust_to_storage(
+        x_best, lambda xs: rmse(full(xs), data, s.side, rest), free, b
+    )
     if moved:
-        status += "; moved off a stick/slip threshold so that the stored 6-digit values reproduce the fit"
+        status += (
+            "; moved off a stick/slip threshold so that the stored 6-digit values reproduce the fit"
+        )
     evaluate(x_best)
     e, j = cache["e"], cache["j"]
     breaks = list(np.cumsum([0] + [len(d) - 1 for d in data]))

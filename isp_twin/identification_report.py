@@ -12,7 +12,6 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-
 from isp_twin.atomic import atomic_path, write_text_atomic
 from isp_twin.identification import (
     RATE_FIELDS,
@@ -70,9 +69,12 @@ def result_json(
     labels = [f"{r}.{f}" for r in REGIMES for f in RATE_FIELDS]
     return {
         "axis": axis,
-        "units": {"rmse": "deg/s", "parameters": "paper form (see parameter file units)",
-                  "rate_form": "SI: pole 1, gain rad/s per command unit per sample, "
-                  "static/coulomb rad/s per sample, alpha s/rad"},
+        "units": {
+            "rmse": "deg/s",
+            "parameters": "paper form (see parameter file units)",
+            "rate_form": "SI: pole 1, gain rad/s per command unit per sample, "
+            "static/coulomb rad/s per sample, alpha s/rad",
+        },
         "parameters": parameters,
         "ci95": ci95,
         "identifiable": identifiable,
@@ -192,7 +194,9 @@ def write_report(
         "|---|---|---|",
     ]
     for r, name in enumerate(REGIMES):
-        lines.append(f"| {name} | {result.visits[r]} | {'yes' if result.regime_identified[r] else 'no (prior kept)'} |")
+        lines.append(
+            f"| {name} | {result.visits[r]} | {'yes' if result.regime_identified[r] else 'no (prior kept)'} |"
+        )
     lines += [
         "",
         "## Table 2: parameters (value ± 95 % half-width)",

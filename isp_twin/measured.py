@@ -161,7 +161,9 @@ class MeasuredData:
 # ------------------------------------------------------------ derivations
 
 
-def differentiate_angle(angle: np.ndarray, dt: float, window: int = DERIVATIVE_WINDOW) -> np.ndarray:
+def differentiate_angle(
+    angle: np.ndarray, dt: float, window: int = DERIVATIVE_WINDOW
+) -> np.ndarray:
     """Rate from an angle by a centred Savitzky-Golay derivative (no lag).
 
     Args:
@@ -199,8 +201,7 @@ def _unit_or_scale(signal: str, text: str, where: str) -> float:
     except ValueError:
         allowed = ", ".join(units) if units else "none"
         raise DataError(
-            f"{where}: '{text}' is neither a number nor a unit of {signal} "
-            f"(units: {allowed})"
+            f"{where}: '{text}' is neither a number nor a unit of {signal} (units: {allowed})"
         ) from None
     if not math.isfinite(value) or value == 0.0:
         raise DataError(f"{where}: scale must be finite and non-zero, got {text}")
@@ -223,7 +224,9 @@ def parse_map_option(text: str) -> tuple[str, ColumnSpec, str | None]:
         raise DataError(f"{where}: expected KEY=SOURCE[*SCALE], KEY one of {', '.join(SIGNALS)}")
     key, rhs = (s.strip() for s in text.split("=", 1))
     if key not in SIGNALS:
-        raise DataError(f"{where}: unknown signal '{key}'{nearest(key, SIGNALS)}; allowed: {', '.join(SIGNALS)}")
+        raise DataError(
+            f"{where}: unknown signal '{key}'{nearest(key, SIGNALS)}; allowed: {', '.join(SIGNALS)}"
+        )
     scale = 1.0
     if "*" in rhs:
         rhs, scale_text = (s.strip() for s in rhs.rsplit("*", 1))
@@ -274,7 +277,9 @@ def load_data_description(path: str | Path) -> DataMapping:
         raise DataError(f"{path}: expected a mapping with a 'columns' key")
     for k in raw:
         if k not in top:
-            raise DataError(f"{path}: {k}: unknown key{nearest(str(k), top)}; allowed: {', '.join(top)}")
+            raise DataError(
+                f"{path}: {k}: unknown key{nearest(str(k), top)}; allowed: {', '.join(top)}"
+            )
     cols = raw["columns"]
     if not isinstance(cols, Mapping):
         raise DataError(f"{path}: columns: expected a mapping")
@@ -282,7 +287,9 @@ def load_data_description(path: str | Path) -> DataMapping:
     for key, entry in cols.items():
         where = f"{path}: columns.{key}"
         if key not in SIGNALS:
-            raise DataError(f"{where}: unknown signal{nearest(str(key), SIGNALS)}; allowed: {', '.join(SIGNALS)}")
+            raise DataError(
+                f"{where}: unknown signal{nearest(str(key), SIGNALS)}; allowed: {', '.join(SIGNALS)}"
+            )
         if isinstance(entry, Mapping):
             allowed = ("column", "scale", "unit")
             for k in entry:
@@ -339,7 +346,9 @@ def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
     return header, table
 
 
-def _csv_columns(path: Path, mapping: DataMapping | None) -> tuple[dict[str, np.ndarray], dict[str, str], int]:
+def _csv_columns(
+    path: Path, mapping: DataMapping | None
+) -> tuple[dict[str, np.ndarray], dict[str, str], int]:
     """Canonical signals (canonical units) from a CSV, their names, the header offset."""
     header, table = _read_csv(path)
     if mapping is None or not mapping.columns:
@@ -374,7 +383,9 @@ def _csv_columns(path: Path, mapping: DataMapping | None) -> tuple[dict[str, np.
     return out, names, 2
 
 
-def _mat_columns(path: Path, mapping: DataMapping | None) -> tuple[dict[str, np.ndarray], dict[str, str], int]:
+def _mat_columns(
+    path: Path, mapping: DataMapping | None
+) -> tuple[dict[str, np.ndarray], dict[str, str], int]:
     from scipy.io import loadmat
 
     if mapping is None or not mapping.columns:
@@ -403,7 +414,9 @@ def _mat_columns(path: Path, mapping: DataMapping | None) -> tuple[dict[str, np.
                 )
             m = np.asarray(mat[var])
             if m.ndim != 2 or not np.issubdtype(m.dtype, np.number):
-                raise DataError(f"{path}: variable '{var}' is not a numeric matrix (shape {m.shape})")
+                raise DataError(
+                    f"{path}: variable '{var}' is not a numeric matrix (shape {m.shape})"
+                )
             if not 0 <= src < m.shape[1]:
                 raise DataError(
                     f"{path}: {mapping.origin}: {key} -> column {src} of '{var}' does not exist "
@@ -429,7 +442,9 @@ def _mat_columns(path: Path, mapping: DataMapping | None) -> tuple[dict[str, np.
     return out, names, 0
 
 
-def _check(path: Path, signals: dict[str, np.ndarray], names: dict[str, str], first_row: int) -> float:
+def _check(
+    path: Path, signals: dict[str, np.ndarray], names: dict[str, str], first_row: int
+) -> float:
     """Validate the canonical signals; return the sample period [s]."""
     lengths = {k: v.shape[0] for k, v in signals.items()}
     if len(set(lengths.values())) > 1:
@@ -485,13 +500,17 @@ def load_measured(path: str | Path, mapping: DataMapping | None = None) -> Measu
     if mapping is not None and mapping.columns:
         for s in ("t", "u"):
             if s not in mapping.columns:
-                raise DataError(f"{path}: {mapping.origin}: no source for '{s}' (needs t, u and omega and/or theta)")
+                raise DataError(
+                    f"{path}: {mapping.origin}: no source for '{s}' (needs t, u and omega and/or theta)"
+                )
     if path.suffix.lower() == ".mat":
         signals, names, first_row = _mat_columns(path, mapping)
     else:
         signals, names, first_row = _csv_columns(path, mapping)
     if "omega" not in signals and "theta" not in signals:
-        raise DataError(f"{path}: needs a rate column 'omega' [deg/s] or an angle column 'theta' [deg] (or both)")
+        raise DataError(
+            f"{path}: needs a rate column 'omega' [deg/s] or an angle column 'theta' [deg] (or both)"
+        )
     dt = _check(path, signals, names, first_row)
     angle0 = (mapping.initial_angle_deg if mapping is not None else 0.0) * DEG
     if "theta" in signals:

@@ -68,7 +68,9 @@ def axis_metrics(omega1: np.ndarray, omega: np.ndarray) -> dict[str, float | Non
 
 
 def run_metrics(
-    t: np.ndarray, signals: Mapping[str, np.ndarray], skip_s: float,
+    t: np.ndarray,
+    signals: Mapping[str, np.ndarray],
+    skip_s: float,
     axes: Sequence[str] = ("inner_az", "inner_el"),
 ) -> dict[str, dict[str, float | None]]:
     """Metrics of every inner axis of a run, over ``t >= skip_s``.

@@ -120,8 +120,11 @@ def simulate_open_loop(
     if engine == "fast":
         spec = params.axis(axis)
         r = simulate(
-            spec.rate_params(), u, dt,
-            angle0=initial_angle_rad, angle_limit=angle_limit_rad,
+            spec.rate_params(),
+            u,
+            dt,
+            angle0=initial_angle_rad,
+            angle_limit=angle_limit_rad,
             effects=[make_effect(e, dt) for e in spec.effects],
         )
         return OpenLoopResponse(t, u, r.omega, r.angle, axis, engine)
@@ -171,8 +174,12 @@ def analyse_open_loop(
     w_deg = omega / DEG
     right = angle > 0
     peaks = {}
-    for name, side, sign in (("R+", right, 1), ("R-", right, -1),
-                             ("L+", ~right, 1), ("L-", ~right, -1)):
+    for name, side, sign in (
+        ("R+", right, 1),
+        ("R-", right, -1),
+        ("L+", ~right, 1),
+        ("L-", ~right, -1),
+    ):
         sel = side & (np.sign(omega) == sign)
         peaks[name] = float(sign * np.max(sign * w_deg[sel])) if sel.any() else float("nan")
     dt = float(np.median(np.diff(t)))

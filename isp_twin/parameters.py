@@ -116,7 +116,7 @@ class AxisParams:
     def regime(self, name: str) -> RegimeParams:
         return self.regimes[REGIMES.index(name)]
 
-    def rate_params(self) -> "RateParams":
+    def rate_params(self) -> RateParams:
         return RateParams.from_regimes(self.regimes)
 
 
@@ -147,7 +147,7 @@ class ParameterSet:
                 f"has {', '.join(self.axes)}"
             ) from None
 
-    def with_axis(self, name: str, axis: AxisParams) -> "ParameterSet":
+    def with_axis(self, name: str, axis: AxisParams) -> ParameterSet:
         axes = dict(self.axes)
         axes[name] = axis
         return replace(self, axes=axes)
@@ -178,7 +178,7 @@ class RateParams:
     alpha: np.ndarray
 
     @classmethod
-    def from_regimes(cls, regimes: tuple[RegimeParams, ...]) -> "RateParams":
+    def from_regimes(cls, regimes: tuple[RegimeParams, ...]) -> RateParams:
         p = np.array([r.as_tuple() for r in regimes], dtype=float)  # (4, 6)
         a, b, ke, ts, tc, alpha = p.T
         return cls(
@@ -190,7 +190,7 @@ class RateParams:
         )
 
     @classmethod
-    def from_vector(cls, x: np.ndarray) -> "RateParams":
+    def from_vector(cls, x: np.ndarray) -> RateParams:
         """From ``x`` of shape (..., 20): per regime (pole, gain, static, coulomb, alpha)."""
         x = np.asarray(x, dtype=float).reshape(*np.shape(x)[:-1], 4, 5)
         return cls(*(x[..., i] for i in range(5)))
@@ -286,7 +286,9 @@ def _parse_effects(raw, path, keys) -> tuple[EffectSpec, ...]:
         out.append(
             EffectSpec(
                 name=str(item["name"]),
-                params={str(n): _number(v, path, k + ["params", str(n)]) for n, v in params.items()},
+                params={
+                    str(n): _number(v, path, k + ["params", str(n)]) for n, v in params.items()
+                },
             )
         )
     return tuple(out)

@@ -122,9 +122,7 @@ class PIGains:
     """PI gains in the paper's units: amplifier digits per gyro count (Ki per sample)."""
 
     kp_digit_per_count: float = _f(3.568, "proportional gain (paper: 3.568)", min=0.0)
-    ki_digit_per_count: float = _f(
-        0.0714, "integral gain per sample (paper: 0.0714)", min=0.0
-    )
+    ki_digit_per_count: float = _f(0.0714, "integral gain per sample (paper: 0.0714)", min=0.0)
 
 
 @dataclass(frozen=True)
@@ -132,9 +130,7 @@ class Notch:
     """The rate loop's notch filter (paper: present, parameters not given)."""
 
     enabled: bool = _f(True, "use the notch")
-    freq_hz: float = _f(
-        300.0, "centre frequency [Hz]", exclusive_min=0.0, exclusive_max=NYQUIST_HZ
-    )
+    freq_hz: float = _f(300.0, "centre frequency [Hz]", exclusive_min=0.0, exclusive_max=NYQUIST_HZ)
     q: float = _f(4.0, "quality factor (centre / -3 dB width)", exclusive_min=0.0)
     depth: float = _f(0.1, "gain at the centre (0: full notch)", min=0.0, max=1.0)
 
@@ -145,8 +141,10 @@ class NFC:
 
     enabled: bool = _f(False, "add the friction feed-forward")
     gamma: float = _f(
-        0.95, "attenuation factor of Eq. 13 (paper: 0.95, range 0.90-0.98)",
-        exclusive_min=0.0, max=1.0,
+        0.95,
+        "attenuation factor of Eq. 13 (paper: 0.95, range 0.90-0.98)",
+        exclusive_min=0.0,
+        max=1.0,
     )
     taps: int = _f(4, "moving-average length of Eq. 12 (paper: 4)", min=1, max=100)
     rest_rate_deg_s: float = _f(
@@ -167,9 +165,7 @@ class AxisController:
         metadata={"doc": "PI gains used with NFC (paper: Kp 3.0, Ki 0.15)"},
     )
     notch: Notch = _sub(Notch, "notch filter")
-    bound_digits: float = _f(
-        2000.0, "bound of the control quantity [digits]", exclusive_min=0.0
-    )
+    bound_digits: float = _f(2000.0, "bound of the control quantity [digits]", exclusive_min=0.0)
     nfc: NFC = _sub(NFC, "friction feed-forward")
 
     @property
@@ -224,11 +220,14 @@ class Follower:
         -1.5,
         "inner_az angle the outer_az follower holds it at [deg] (off 0: see "
         "docs/calibration.md, Table 2's gain jumps at Y = 0)",
-        min=-3.0, max=3.0,
+        min=-3.0,
+        max=3.0,
     )
     inner_el_center_deg: float = _f(
-        1.5, "inner_el angle the outer_el follower holds it at [deg] (mirrored)",
-        min=-3.0, max=3.0,
+        1.5,
+        "inner_el angle the outer_el follower holds it at [deg] (mirrored)",
+        min=-3.0,
+        max=3.0,
     )
 
 
@@ -262,8 +261,10 @@ class Record:
     """Recording options."""
 
     decimation: int = _f(
-        1, "keep every n-th sample in the run's record (metrics use every sample)",
-        min=1, max=1000,
+        1,
+        "keep every n-th sample in the run's record (metrics use every sample)",
+        min=1,
+        max=1000,
     )
 
 
@@ -331,7 +332,7 @@ class Scenario:
         freqs = [m.freq_hz for m in self.turntable.motions().values() if m.rate_amplitude > 0]
         return 1.0 / min(freqs) if freqs else 0.0
 
-    def with_nfc(self, enabled: bool) -> "Scenario":
+    def with_nfc(self, enabled: bool) -> Scenario:
         """The same scenario with NFC switched on or off on both inner loops."""
         axes = {
             a: dataclasses.replace(
@@ -393,8 +394,12 @@ def _check_range(value: float, meta: Mapping, where: str) -> None:
     )
     if bad:
         allowed = []
-        for bound, op in (("min", ">="), ("exclusive_min", ">"), ("max", "<="),
-                          ("exclusive_max", "<")):
+        for bound, op in (
+            ("min", ">="),
+            ("exclusive_min", ">"),
+            ("max", "<="),
+            ("exclusive_max", "<"),
+        ):
             if meta.get(bound) is not None:
                 allowed.append(f"{op} {meta[bound]:g}")
         note = " (the Nyquist frequency of the 1 kHz loop)" if xhi == NYQUIST_HZ else ""
@@ -536,12 +541,19 @@ def _schema_of(tp, meta: Mapping) -> dict:
     elif typing.get_origin(tp) is Literal:
         out = {"enum": list(typing.get_args(tp))}
     else:
-        out = {bool: {"type": "boolean"}, int: {"type": "integer"}, float: {"type": "number"},
-               str: {"type": "string"}}[tp]
+        out = {
+            bool: {"type": "boolean"},
+            int: {"type": "integer"},
+            float: {"type": "number"},
+            str: {"type": "string"},
+        }[tp]
         out = dict(out)
-        for key, js in (("min", "minimum"), ("max", "maximum"),
-                        ("exclusive_min", "exclusiveMinimum"),
-                        ("exclusive_max", "exclusiveMaximum")):
+        for key, js in (
+            ("min", "minimum"),
+            ("max", "maximum"),
+            ("exclusive_min", "exclusiveMinimum"),
+            ("exclusive_max", "exclusiveMaximum"),
+        ):
             if meta.get(key) is not None:
                 out[js] = meta[key]
     if optional:

@@ -94,7 +94,7 @@ class PhysicalAxis:
     @classmethod
     def from_rate_params(
         cls, rate: RateParams, inertia: float, dt: float, discretization: str = "zoh"
-    ) -> "PhysicalAxis":
+    ) -> PhysicalAxis:
         """Map Eq. 6's per-sample rate form to torques.
 
         ``"zoh"``, the continuous-time meaning (exact zero-order hold):

@@ -14,7 +14,10 @@ DT = 1e-3
 def _frictionless(pole=0.9, gain=1e-4):
     z = np.zeros(4)
     return RateParams(
-        pole=np.full(4, pole), gain=np.full(4, gain), static=z + 1e-12, coulomb=z + 1e-12,
+        pole=np.full(4, pole),
+        gain=np.full(4, gain),
+        static=z + 1e-12,
+        coulomb=z + 1e-12,
         alpha=np.ones(4),
     )
 

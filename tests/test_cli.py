@@ -54,8 +54,10 @@ def test_unknown_scenario_key_names_the_key_and_the_nearest(capsys, tmp_path):
 
 @pytest.mark.parametrize(
     "old, new, message",
-    [("      Ts: {value: 5.563, ci95: 0.284}\n", "", "inner_az.R+.Ts: missing"),
-     ("Tc: {value: 3.176", "Tc: {value: -3.176", "inner_az.R+.Tc: must be positive")],
+    [
+        ("      Ts: {value: 5.563, ci95: 0.284}\n", "", "inner_az.R+.Ts: missing"),
+        ("Tc: {value: 3.176", "Tc: {value: -3.176", "inner_az.R+.Tc: must be positive"),
+    ],
 )
 def test_bad_parameter_file(capsys, tmp_path, old, new, message):
     params = tmp_path / "params.yaml"
@@ -100,7 +102,9 @@ def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
     rrd = tmp_path / "long.rrd"
     proc = subprocess.Popen(
         [sys.executable, "-m", "isp_twin.cli", "run", str(scenario), "--recording", str(rrd)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     try:

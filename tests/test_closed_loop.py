@@ -37,13 +37,28 @@ def test_signals_have_the_documented_names_and_lengths(short_run):
     n = len(short_run.t)
     assert n == 2501 and short_run.t[1] == pytest.approx(1e-3)
     for axis in ("inner_az", "inner_el"):
-        for sig in ("omega_carrier", "omega_inertial", "omega_relative", "gyro", "command",
-                    "friction", "nfc", "regime"):
+        for sig in (
+            "omega_carrier",
+            "omega_inertial",
+            "omega_relative",
+            "gyro",
+            "command",
+            "friction",
+            "nfc",
+            "regime",
+        ):
             assert short_run.signals[f"{axis}/{sig}"].shape == (n,)
     for axis in ("outer_az", "outer_el"):
         assert short_run.signals[f"{axis}/follow_error"].shape == (n,)
     assert set(short_run.joint_angles) == {
-        "table_yaw", "table_pitch", "table_roll", "outer_az", "outer_el", "inner_az", "inner_el"}
+        "table_yaw",
+        "table_pitch",
+        "table_roll",
+        "outer_az",
+        "outer_el",
+        "inner_az",
+        "inner_el",
+    }
     assert not short_run.interrupted
     assert short_run.scenario_text == "" and "paper_table2" in short_run.parameters_file
 
@@ -79,20 +94,26 @@ def test_decimation_thins_the_record_but_not_the_metrics(short_run):
     thin = run_scenario(parse_scenario(raw, "short.yaml"))
     assert thin.metrics == short_run.metrics
     assert len(thin.t) == 251 and thin.t[1] == pytest.approx(0.01)
-    assert np.array_equal(thin.signals["inner_az/command"], short_run.signals["inner_az/command"][::10])
+    assert np.array_equal(
+        thin.signals["inner_az/command"], short_run.signals["inner_az/command"][::10]
+    )
 
 
 def test_absurd_gains_stop_with_the_time_and_signal_named():
-    raw = {**SHORT, "controller": {"inner_az": {"pi": {"kp_digit_per_count": 1e6},
-                                               "bound_digits": 1e9}}}
+    raw = {
+        **SHORT,
+        "controller": {"inner_az": {"pi": {"kp_digit_per_count": 1e6}, "bound_digits": 1e9}},
+    }
     with pytest.raises(SimulationDiverged, match=r"diverged at t=\d+\.\d+ s: inner_az"):
         run_scenario(parse_scenario(raw, "absurd.yaml"))
 
 
 def test_a_loop_pinned_at_its_bound_stops_as_unstable():
     raw = {**SHORT, "controller": {"inner_az": {"pi": {"kp_digit_per_count": 1000.0}}}}
-    with pytest.raises(SimulationDiverged,
-                       match=r"unstable at t=\d+\.\d+ s: inner_az/command has been at its bound"):
+    with pytest.raises(
+        SimulationDiverged,
+        match=r"unstable at t=\d+\.\d+ s: inner_az/command has been at its bound",
+    ):
         run_scenario(parse_scenario(raw, "absurd.yaml"))
 
 

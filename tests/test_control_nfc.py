@@ -19,9 +19,15 @@ def axis(paper_params):
     return paper_params.axis("inner_az")
 
 
-@pytest.mark.parametrize("name, omega_deg_s, angle", [
-    ("R+", 2.0, 0.01), ("R-", -2.0, 0.01), ("L+", 0.7, -0.01), ("L-", -5.0, 0.0),
-])
+@pytest.mark.parametrize(
+    "name, omega_deg_s, angle",
+    [
+        ("R+", 2.0, 0.01),
+        ("R-", -2.0, 0.01),
+        ("L+", 0.7, -0.01),
+        ("L-", -5.0, 0.0),
+    ],
+)
 def test_u_c1_is_the_table2_friction_over_ke_of_the_regime(axis, name, omega_deg_s, angle):
     nfc = FrictionFeedForward(axis.rate_params(), gamma=1.0)
     expected = paper_friction_digits(axis.regime(name), abs(omega_deg_s))

@@ -15,8 +15,14 @@ DT = 1e-3
 
 
 def make_gyro(seed=0, **kw):
-    args = dict(scale_count_per_deg_s=65.0, noise_deg_s=0.0, bandwidth_hz=1e9,
-                sample_every=1, dt=DT, rng=np.random.default_rng(seed))
+    args = dict(
+        scale_count_per_deg_s=65.0,
+        noise_deg_s=0.0,
+        bandwidth_hz=1e9,
+        sample_every=1,
+        dt=DT,
+        rng=np.random.default_rng(seed),
+    )
     args.update(kw)
     return Gyro(**args)
 

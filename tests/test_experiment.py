@@ -23,7 +23,9 @@ def test_eq7_command_is_the_papers_input():
 
 
 def test_noise_free_run_is_the_axis_model(paper_params):
-    d = generate_openloop(paper_params, gyro_noise_deg_s=0, resolver_lsb_deg=0, initial_angle_deg=1.0)
+    d = generate_openloop(
+        paper_params, gyro_noise_deg_s=0, resolver_lsb_deg=0, initial_angle_deg=1.0
+    )
     rate = paper_params.axis("inner_az").rate_params()
     ref = simulate(rate, d.u, 1e-3, angle0=1.0 * DEG, angle_limit=INNER_STOP_DEG * DEG)
     np.testing.assert_array_equal(d.omega, ref.omega)
@@ -83,5 +85,19 @@ def test_generate_command_writes_loadable_csv(tmp_path, capsys):
     assert [f.stem for f in files] == sorted(e.name for e in PAPER_SET)
     d = load_measured(files[0])
     assert len(d) == 2000 and d.dt == pytest.approx(1e-3)
-    assert main(["generate", "--out", str(tmp_path / "one"), "--set", "eq7", "--samples", "500", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "generate",
+                "--out",
+                str(tmp_path / "one"),
+                "--set",
+                "eq7",
+                "--samples",
+                "500",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert len(load_measured(tmp_path / "one" / "eq7.csv")) == 500

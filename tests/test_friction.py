@@ -21,8 +21,14 @@ ALPHA = np.array([0.427, 0.263, 0.774, 0.166])
 
 @pytest.mark.parametrize(
     "angle, direction, expected",
-    [(1.0, 1.0, "R+"), (1.0, -1.0, "R-"), (-1.0, 1.0, "L+"), (-1.0, -1.0, "L-"),
-     (0.0, 1.0, "L+"), (0.0, -1.0, "L-")],
+    [
+        (1.0, 1.0, "R+"),
+        (1.0, -1.0, "R-"),
+        (-1.0, 1.0, "L+"),
+        (-1.0, -1.0, "L-"),
+        (0.0, 1.0, "L+"),
+        (0.0, -1.0, "L-"),
+    ],
 )
 def test_regime_follows_side_and_direction(angle, direction, expected):
     # Eq. 5: Y <= 0 is the left half-plane, so the angle 0 belongs to L.

@@ -23,7 +23,13 @@ from isp_twin.identification import (
     to_axis_params,
 )
 from isp_twin.measured import save_measured
-from isp_twin.parameters import AxisParams, ParameterSet, RegimeParams, load_parameters, save_parameters
+from isp_twin.parameters import (
+    AxisParams,
+    ParameterSet,
+    RegimeParams,
+    load_parameters,
+    save_parameters,
+)
 from isp_twin.units import DEG
 
 # Short test data: two of the paper-set variations at 1 Hz, 1000 samples
@@ -36,13 +42,22 @@ FAST = Settings(generations=0, refine_evaluations=60)
 
 def _data(params, noise, seed=0, excitations=SHORT):
     lsb = 360 / 2**16 if noise else 0.0
-    return generate_set(params, "inner_az", excitations, gyro_noise_deg_s=noise, resolver_lsb_deg=lsb, seed=seed)
+    return generate_set(
+        params, "inner_az", excitations, gyro_noise_deg_s=noise, resolver_lsb_deg=lsb, seed=seed
+    )
 
 
 def _perturbed_prior(axis):
     """A wrong prior (start and fallback values): every number off by 20-40 %."""
     regs = [
-        dataclasses.replace(r, a=1 - (1 - r.a) * 1.3, Ke=r.Ke * 0.7, Ts=r.Ts * 1.4, Tc=r.Tc * 0.75, alpha=r.alpha * 1.3)
+        dataclasses.replace(
+            r,
+            a=1 - (1 - r.a) * 1.3,
+            Ke=r.Ke * 0.7,
+            Ts=r.Ts * 1.4,
+            Tc=r.Tc * 0.75,
+            alpha=r.alpha * 1.3,
+        )
         for r in axis.regimes
     ]
     return dataclasses.replace(axis, regimes=tuple(regs))
@@ -151,8 +166,24 @@ def test_identify_command_end_to_end(tmp_path, paper_params, truth, capsys):
     data = _data(paper_params, 0.02)
     paths = [str(save_measured(d, tmp_path / f"{d.name}.csv")) for d in data]
     out, js = tmp_path / "id.yaml", tmp_path / "id.json"
-    argv = ["identify", paths[0], paths[1], "--validate", paths[1], "--out", str(out), "--json", str(js),
-            "--generations", "1", "--population", "6", "--refine-evaluations", "60", "--quiet"]
+    argv = [
+        "identify",
+        paths[0],
+        paths[1],
+        "--validate",
+        paths[1],
+        "--out",
+        str(out),
+        "--json",
+        str(js),
+        "--generations",
+        "1",
+        "--population",
+        "6",
+        "--refine-evaluations",
+        "60",
+        "--quiet",
+    ]
     assert main(argv) == 0
     assert capsys.readouterr().err == ""  # --quiet and not a terminal: no progress
     ps = load_parameters(out)  # directly usable by `isp-twin run`
@@ -175,7 +206,9 @@ def test_identify_command_end_to_end(tmp_path, paper_params, truth, capsys):
 
 def test_identify_command_bad_data_is_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
-    bad.write_text("t,u,omega\n" + "".join(f"{k * 1e-3},1,{'nan' if k == 30 else 0}\n" for k in range(50)))
+    bad.write_text(
+        "t,u,omega\n" + "".join(f"{k * 1e-3},1,{'nan' if k == 30 else 0}\n" for k in range(50))
+    )
     out = tmp_path / "never.yaml"
     assert main(["identify", str(bad), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
@@ -186,10 +219,18 @@ def test_identify_command_bad_data_is_one_line(tmp_path, capsys):
 def test_identify_command_rejects_data_at_another_sample_rate(tmp_path, capsys):
     t = np.arange(100) * 2e-3
     path = tmp_path / "slow.csv"
-    np.savetxt(path, np.column_stack([t, 100 * np.sin(t), np.sin(t), np.cos(t)]), delimiter=",",
-               header="t,u,omega,theta", comments="")
+    np.savetxt(
+        path,
+        np.column_stack([t, 100 * np.sin(t), np.sin(t), np.cos(t)]),
+        delimiter=",",
+        header="t,u,omega,theta",
+        comments="",
+    )
     assert main(["identify", str(path), "--out", str(tmp_path / "p.yaml")]) == 2
-    assert "slow.csv: sample period 0.002 s, but the parameters are per sample of 0.001 s" in capsys.readouterr().err
+    assert (
+        "slow.csv: sample period 0.002 s, but the parameters are per sample of 0.001 s"
+        in capsys.readouterr().err
+    )
 
 
 def test_real_free_spinning_motor_with_the_side_fixed(tmp_path):
@@ -201,8 +242,13 @@ def test_real_free_spinning_motor_with_the_side_fixed(tmp_path):
     from isp_twin.measured import load_measured, mapping_from_options
 
     real = Path(__file__).parent / "data" / "hsm150_idf_pos_0.06_1_excerpt.mat"
-    d = load_measured(real, mapping_from_options(["t=data:0", "u=data:4", "omega=data:3*rad/s", "theta=data:2*rad"]))
-    base = RegimeParams(a=1 - 7.03e-5 * 1e-3 / 1.2e-4, b=1e-3 / 1.2e-4 / DEG, Ke=1.0, Ts=0.025, Tc=0.02, alpha=0.01)
+    d = load_measured(
+        real,
+        mapping_from_options(["t=data:0", "u=data:4", "omega=data:3*rad/s", "theta=data:2*rad"]),
+    )
+    base = RegimeParams(
+        a=1 - 7.03e-5 * 1e-3 / 1.2e-4, b=1e-3 / 1.2e-4 / DEG, Ke=1.0, Ts=0.025, Tc=0.02, alpha=0.01
+    )
     prior = AxisParams(regimes=(base,) * 4)
     res = identify([d], prior, Settings(side="right", generations=0, refine_evaluations=30))
     assert res.regime_identified == (True, False, False, False)
@@ -222,8 +268,24 @@ def test_identify_command_reads_mat_through_a_data_description(tmp_path):
         "  theta: {column: 2, unit: rad}\n"
     )
     out, js = tmp_path / "p.yaml", tmp_path / "p.json"
-    argv = ["identify", str(real), "--describe", str(desc), "--side", "right", "--out", str(out),
-            "--json", str(js), "--generations", "0", "--refine-evaluations", "5", "--no-report", "--quiet"]
+    argv = [
+        "identify",
+        str(real),
+        "--describe",
+        str(desc),
+        "--side",
+        "right",
+        "--out",
+        str(out),
+        "--json",
+        str(js),
+        "--generations",
+        "0",
+        "--refine-evaluations",
+        "5",
+        "--no-report",
+        "--quiet",
+    ]
     assert main(argv) == 0
     summary = json.loads(js.read_text())
     assert summary["regime_identified"] == {"R+": True, "R-": False, "L+": False, "L-": False}

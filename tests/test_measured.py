@@ -36,7 +36,9 @@ def _signals():
 
 
 def _write_csv(path, header, columns, fmt="%.12g"):
-    np.savetxt(path, np.column_stack(columns), delimiter=",", header=",".join(header), comments="", fmt=fmt)
+    np.savetxt(
+        path, np.column_stack(columns), delimiter=",", header=",".join(header), comments="", fmt=fmt
+    )
     return path
 
 
@@ -234,7 +236,9 @@ def test_mapping_to_a_missing_mat_column_or_variable(tmp_path):
     path = tmp_path / "b.mat"
     savemat(path, {"data": np.column_stack([t, u, w])})
     m = mapping_from_options(["t=data:0", "u=data:1", "omega=data:5"])
-    with pytest.raises(DataError, match=r"column 5 of 'data' does not exist \('data' has 3 columns"):
+    with pytest.raises(
+        DataError, match=r"column 5 of 'data' does not exist \('data' has 3 columns"
+    ):
         load_measured(path, m)
     m = mapping_from_options(["t=dta:0", "u=dta:1", "omega=dta:2"])
     with pytest.raises(DataError, match=r"variable 'dta' does not exist \(did you mean 'data'\?\)"):
@@ -269,7 +273,9 @@ def test_bad_data_description_names_the_key(tmp_path):
         load_data_description(desc)
 
 
-REAL = Path(__file__).parent / "data" / "hsm150_idf_pos_0.06_1_excerpt.mat"  # see tests/data/README.md
+REAL = (
+    Path(__file__).parent / "data" / "hsm150_idf_pos_0.06_1_excerpt.mat"
+)  # see tests/data/README.md
 
 
 def test_real_hsm150_excerpt_loads_in_si():
@@ -281,4 +287,6 @@ def test_real_hsm150_excerpt_loads_in_si():
     assert 100 < d.omega.min() and d.omega.max() < 250  # rad/s, as the README says (~200 rad/s)
     assert (np.diff(d.angle) >= 0).all()  # free spinning, angle only grows
     # The rate column agrees with the position column's derivative (both SI).
-    np.testing.assert_allclose(differentiate_angle(d.angle, d.dt)[50:-50].mean(), d.omega[50:-50].mean(), rtol=0.01)
+    np.testing.assert_allclose(
+        differentiate_angle(d.angle, d.dt)[50:-50].mean(), d.omega[50:-50].mean(), rtol=0.01
+    )

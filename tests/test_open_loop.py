@@ -18,8 +18,9 @@ def eq4_fast(paper_params):
 def test_eq7_input_gives_the_left_regime_rates_of_table2(paper_params):
     # The figure: Table 2 + Eq. 6 + Eq. 7 give about +36 and -48 deg/s;
     # they are the quasi-static L-regime rates for +750 and -1150 digits.
-    r = simulate_open_loop(paper_params, engine="fast", offset_digits=-200.0,
-                           angle_limit_rad=None, duration_s=6.0)
+    r = simulate_open_loop(
+        paper_params, engine="fast", offset_digits=-200.0, angle_limit_rad=None, duration_s=6.0
+    )
     f = analyse_open_loop(r.t, r.omega, r.angle, skip_s=2.0)
     rp = paper_params.axis("inner_az").rate_params()
     assert np.rad2deg(steady_rate(rp, 750.0, 2)) == pytest.approx(36.3, abs=0.5)
@@ -41,15 +42,18 @@ def test_eq4_dead_zones_are_hundreds_of_ms_on_the_right(eq4_fast):
     zones = eq4_fast.dead_zones_ms["R"]
     assert len(zones) >= 4
     # Fig. 2: about 645 ms for Y > 0; each R-side dead zone is within a factor 2.
-    assert all(PAPER_FIG2["dead_zone_right_ms"] / 2 < z < 2 * PAPER_FIG2["dead_zone_right_ms"]
-               for z in zones)
+    assert all(
+        PAPER_FIG2["dead_zone_right_ms"] / 2 < z < 2 * PAPER_FIG2["dead_zone_right_ms"]
+        for z in zones
+    )
 
 
 def test_left_dead_zones_are_shorter_than_right_ones(paper_params, eq4_fast):
     # Fig. 2: 645 ms (Y > 0) against 210 ms (Y <= 0). Drive the axis on the
     # left with the Eq. 7 offset to see the L-side dead zones.
-    r = simulate_open_loop(paper_params, engine="fast", offset_digits=-200.0,
-                           angle_limit_rad=None, duration_s=6.0)
+    r = simulate_open_loop(
+        paper_params, engine="fast", offset_digits=-200.0, angle_limit_rad=None, duration_s=6.0
+    )
     left = analyse_open_loop(r.t, r.omega, r.angle).dead_zones_ms["L"]
     assert left and max(left) < min(eq4_fast.dead_zones_ms["R"])
 

@@ -20,8 +20,10 @@ from isp_twin.scenario import load_scenario
 
 @pytest.mark.parametrize("table", [TABLE5, TABLE6], ids=["table5", "table6"])
 def test_printed_averages_and_variances_follow_from_the_printed_runs(table):
-    for runs, avg, var in ((table.pi, table.pi_average, table.pi_variance),
-                           (table.pi_nfc, table.pi_nfc_average, table.pi_nfc_variance)):
+    for runs, avg, var in (
+        (table.pi, table.pi_average, table.pi_variance),
+        (table.pi_nfc, table.pi_nfc_average, table.pi_nfc_variance),
+    ):
         s = campaign_stats(runs)
         assert s.average == pytest.approx(avg, abs=0.006)
         # Table 6's PI+NFC variance is printed as 4.1229E-5 for 4.1207E-5
@@ -78,8 +80,13 @@ def _campaign_like(table):
     def variant(runs):
         return VariantResult(campaign_stats(runs), (0.5,) * len(runs), (0.1,) * len(runs))
 
-    return CampaignResult("x", "p.yaml", "inner_az", tuple(range(10)),
-                          {"PI": variant(table.pi), "PI+NFC": variant(table.pi_nfc)})
+    return CampaignResult(
+        "x",
+        "p.yaml",
+        "inner_az",
+        tuple(range(10)),
+        {"PI": variant(table.pi), "PI+NFC": variant(table.pi_nfc)},
+    )
 
 
 def test_report_says_met_when_the_twin_equals_the_paper_and_not_met_otherwise():

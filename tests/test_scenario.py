@@ -73,16 +73,19 @@ def test_unknown_key_names_the_path_and_the_nearest_key(tmp_path):
     assert "did you mean 'kp_digit_per_count'" in msg
 
 
-@pytest.mark.parametrize("raw, match", [
-    ({"duration_s": -1.0}, r"duration_s: -1.0 out of range; must be > 0"),
-    ({"controller": {"inner_az": {"nfc": {"gamma": 1.2}}}}, r"nfc.gamma: 1.2 out of range"),
-    ({"controller": {"inner_el": {"notch": {"freq_hz": 600.0}}}}, r"notch.freq_hz.*Nyquist"),
-    ({"kind": "openloop"}, r"kind: 'openloop' is not allowed \(did you mean 'open_loop'\?\)"),
-    ({"seed": 1.5}, r"seed: expected an integer"),
-    ({"gyro": {"noise_deg_s": "loud"}}, r"gyro.noise_deg_s: expected a number"),
-    ({"follower": {"enabled": "yes"}}, r"follower.enabled: expected true or false"),
-    ({"turntable": "fast"}, r"turntable: expected a mapping"),
-])
+@pytest.mark.parametrize(
+    "raw, match",
+    [
+        ({"duration_s": -1.0}, r"duration_s: -1.0 out of range; must be > 0"),
+        ({"controller": {"inner_az": {"nfc": {"gamma": 1.2}}}}, r"nfc.gamma: 1.2 out of range"),
+        ({"controller": {"inner_el": {"notch": {"freq_hz": 600.0}}}}, r"notch.freq_hz.*Nyquist"),
+        ({"kind": "openloop"}, r"kind: 'openloop' is not allowed \(did you mean 'open_loop'\?\)"),
+        ({"seed": 1.5}, r"seed: expected an integer"),
+        ({"gyro": {"noise_deg_s": "loud"}}, r"gyro.noise_deg_s: expected a number"),
+        ({"follower": {"enabled": "yes"}}, r"follower.enabled: expected true or false"),
+        ({"turntable": "fast"}, r"turntable: expected a mapping"),
+    ],
+)
 def test_bad_values_are_rejected_with_the_key_path(raw, match):
     with pytest.raises(ScenarioError, match=match):
         parse_scenario({**MOVING, **raw}, "s.yaml")
@@ -113,7 +116,7 @@ def test_missing_file_and_missing_parameter_file(tmp_path):
     path = tmp_path / "s.yaml"
     path.write_text("parameters: nowhere.yaml\nturntable: {table_yaw: {rate_amplitude_deg_s: 1}}\n")
     with pytest.raises(ResourceNotFound, match="parameters: file 'nowhere.yaml' not found"):
-        load_scenario(path).parameters_path
+        _ = load_scenario(path).parameters_path
 
 
 def test_parameters_path_is_relative_to_the_scenario_file(tmp_path):

@@ -27,13 +27,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scenario", help="scenario file or shipped scenario name")
     p.add_argument("-n", "--runs", type=int, default=10, help="runs per controller (paper: 10)")
     p.add_argument("--seed", type=int, default=None, help="first seed (default: the scenario's)")
-    p.add_argument("--axis", choices=("inner_az", "inner_el"), default="inner_az",
-                   help="inner axis the statistics are taken on")
+    p.add_argument(
+        "--axis",
+        choices=("inner_az", "inner_el"),
+        default="inner_az",
+        help="inner axis the statistics are taken on",
+    )
     p.add_argument("--params", type=Path, default=None, help="parameter file")
-    p.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
-                   help="worker processes")
-    p.add_argument("--json", type=Path, default=None, metavar="PATH",
-                   help="also write the statistics as JSON")
+    p.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="worker processes")
+    p.add_argument(
+        "--json", type=Path, default=None, metavar="PATH", help="also write the statistics as JSON"
+    )
     p.set_defaults(execute=execute)
 
 
@@ -53,17 +57,23 @@ def execute(args: argparse.Namespace) -> int:
     print(f"campaign {scenario.name}: {args.runs} runs x (PI, PI+NFC), axis {args.axis}")
     result = run_campaign(scenario, args.runs, args.seed, params, args.axis, max(1, args.jobs))
     print(f"seeds {result.seeds[0]}..{result.seeds[-1]}  parameters {result.parameters_file}\n")
-    print(f"{'controller':<8} {'average':>8} {'best':>7} {'worst':>7} {'range':>6} "
-          f"{'variance':>10} {'max|w1|':>8} {'rms w1':>7}   runs J [%]")
+    print(
+        f"{'controller':<8} {'average':>8} {'best':>7} {'worst':>7} {'range':>6} "
+        f"{'variance':>10} {'max|w1|':>8} {'rms w1':>7}   runs J [%]"
+    )
     for label, v in result.variants.items():
         s = v.stats
         d = v.as_dict()
         runs = " ".join(f"{x:.2f}" for x in s.runs)
-        print(f"{label:<8} {s.average:8.2f} {s.best:7.2f} {s.worst:7.2f} {s.range:6.2f} "
-              f"{s.variance:10.3e} {d['mean_max_abs_error_deg_s']:8.4f} "
-              f"{d['mean_rms_error_deg_s']:7.4f}   {runs}")
-    print(f"\nNFC reduces the average J by {result.relative_reduction_percent:.1f} % "
-          "(paper: 36.9 % tracking, 41.8 % isolation)")
+        print(
+            f"{label:<8} {s.average:8.2f} {s.best:7.2f} {s.worst:7.2f} {s.range:6.2f} "
+            f"{s.variance:10.3e} {d['mean_max_abs_error_deg_s']:8.4f} "
+            f"{d['mean_rms_error_deg_s']:7.4f}   {runs}"
+        )
+    print(
+        f"\nNFC reduces the average J by {result.relative_reduction_percent:.1f} % "
+        "(paper: 36.9 % tracking, 41.8 % isolation)"
+    )
     if args.json is not None:
         write_text_atomic(args.json, json.dumps(result.as_json(), indent=2) + "\n")
         print(f"statistics written to {args.json}")

@@ -49,7 +49,14 @@ def execute(args) -> int:
     params = load_parameters(args.params or default_parameters_path())
     if args.which == "paper":
         runs = [
-            (e.amplitude_digits, e.freq_hz, e.offset_digits, e.n_samples, e.initial_angle_deg, e.name)
+            (
+                e.amplitude_digits,
+                e.freq_hz,
+                e.offset_digits,
+                e.n_samples,
+                e.initial_angle_deg,
+                e.name,
+            )
             for e in PAPER_SET
         ]
     else:

@@ -11,7 +11,12 @@ from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import DataError
 from isp_twin.identification import SIDES, Settings, identify, to_axis_params
 from isp_twin.identification_report import result_json, write_report
-from isp_twin.measured import DataMapping, load_data_description, load_measured, mapping_from_options
+from isp_twin.measured import (
+    DataMapping,
+    load_data_description,
+    load_measured,
+    mapping_from_options,
+)
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG
@@ -30,27 +35,59 @@ def add_parser(sub) -> None:
         ),
     )
     p.add_argument("data", nargs="+", metavar="DATA", help="identification runs")
-    p.add_argument("--validate", nargs="+", default=[], metavar="DATA", help="validation runs (Table 3)")
+    p.add_argument(
+        "--validate", nargs="+", default=[], metavar="DATA", help="validation runs (Table 3)"
+    )
     p.add_argument("--out", required=True, type=Path, help="output parameter file (YAML)")
-    p.add_argument("--prior", type=Path, default=None, help="prior parameter file (default: the paper's Table 2)")
+    p.add_argument(
+        "--prior",
+        type=Path,
+        default=None,
+        help="prior parameter file (default: the paper's Table 2)",
+    )
     p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
-    p.add_argument("--map", action="append", default=[], metavar="KEY=SOURCE[*SCALE]",
-                   help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad")
-    p.add_argument("--describe", type=Path, default=None, help="YAML data description (instead of --map)")
-    p.add_argument("--initial-angle", type=float, default=0.0, metavar="DEG",
-                   help="angle at the first sample [deg] for rate-only data (the angle is integrated)")
-    p.add_argument("--side", default="measured", choices=SIDES,
-                   help="half-plane source: measured (angle fused with rate), raw, wrap, right, left")
+    p.add_argument(
+        "--map",
+        action="append",
+        default=[],
+        metavar="KEY=SOURCE[*SCALE]",
+        help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad",
+    )
+    p.add_argument(
+        "--describe", type=Path, default=None, help="YAML data description (instead of --map)"
+    )
+    p.add_argument(
+        "--initial-angle",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="angle at the first sample [deg] for rate-only data (the angle is integrated)",
+    )
+    p.add_argument(
+        "--side",
+        default="measured",
+        choices=SIDES,
+        help="half-plane source: measured (angle fused with rate), raw, wrap, right, left",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--generations", type=int, default=Settings.generations)
     p.add_argument("--population", type=int, default=Settings.population)
     p.add_argument("--refine-evaluations", type=int, default=Settings.refine_evaluations)
     p.add_argument("--no-refine", action="store_true", help="skip the least-squares refinement")
     p.add_argument("--min-regime-samples", type=int, default=Settings.min_regime_samples)
-    p.add_argument("--rest-rate", type=float, default=Settings.rest_rate_deg_s, metavar="DEG_S",
-                   help="|rate| counted as at rest [deg/s]")
-    p.add_argument("--report", type=Path, default=None,
-                   help="Markdown report (default: OUT with suffix _report.md; PNGs beside it)")
+    p.add_argument(
+        "--rest-rate",
+        type=float,
+        default=Settings.rest_rate_deg_s,
+        metavar="DEG_S",
+        help="|rate| counted as at rest [deg/s]",
+    )
+    p.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        help="Markdown report (default: OUT with suffix _report.md; PNGs beside it)",
+    )
     p.add_argument("--no-report", action="store_true")
     p.add_argument("--json", type=Path, default=None, help="JSON summary")
     p.add_argument("--quiet", action="store_true", help="no progress output")
@@ -93,14 +130,25 @@ def execute(args) -> int:
 
     def progress(stage: str, step: int, cost: float) -> None:
         if show:
-            label = "generation {}: best RMS" if stage == "search" else "refinement, {} simulated sets: RMS"
-            print(f"\r{label.format(step)} {cost / DEG:.5g} deg/s   ", end="", file=sys.stderr, flush=True)
+            label = (
+                "generation {}: best RMS"
+                if stage == "search"
+                else "refinement, {} simulated sets: RMS"
+            )
+            print(
+                f"\r{label.format(step)} {cost / DEG:.5g} deg/s   ",
+                end="",
+                file=sys.stderr,
+                flush=True,
+            )
 
     result = identify(train, prior, settings, progress)
     if show:
         print(file=sys.stderr)
     names = ", ".join(d.name for d in train)
-    axis_params = to_axis_params(result, prior, note=f"identified by isp-twin identify from {names}")
+    axis_params = to_axis_params(
+        result, prior, note=f"identified by isp-twin identify from {names}"
+    )
     out_set = replace(
         prior_set.with_axis(args.axis, axis_params),
         name=args.out.stem,

@@ -24,10 +24,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("-n", "--runs", type=int, default=10, help="seeds per cell (paper: 10)")
     p.add_argument("--seed", type=int, default=1, help="first seed")
-    p.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
-                   help="worker processes")
-    p.add_argument("--output", type=Path, default=None, metavar="PATH",
-                   help="also write the Markdown to PATH (e.g. docs/paper_vs_twin.md)")
+    p.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="worker processes")
+    p.add_argument(
+        "--output",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help="also write the Markdown to PATH (e.g. docs/paper_vs_twin.md)",
+    )
     p.set_defaults(execute=execute)
 
 

@@ -32,18 +32,38 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", help="scenario file or shipped scenario name")
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the scenario's)")
-    p.add_argument("--params", type=Path, default=None,
-                   help="parameter file (default: the scenario's 'parameters')")
-    p.add_argument("--json", type=Path, default=None, metavar="PATH",
-                   help="also write the metrics as JSON")
-    p.add_argument("--recording", type=Path, default=None, metavar="PATH",
-                   help="recording path (default: recordings/<scenario>.rrd)")
+    p.add_argument(
+        "--params",
+        type=Path,
+        default=None,
+        help="parameter file (default: the scenario's 'parameters')",
+    )
+    p.add_argument(
+        "--json", type=Path, default=None, metavar="PATH", help="also write the metrics as JSON"
+    )
+    p.add_argument(
+        "--recording",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help="recording path (default: recordings/<scenario>.rrd)",
+    )
     p.add_argument("--no-recording", action="store_true", help="do not write a recording")
     p.add_argument("--spawn", action="store_true", help="also stream to a new Rerun viewer")
-    p.add_argument("--connect", nargs="?", const="", default=None, metavar="URL",
-                   help="also stream to a running Rerun viewer (default URL if none given)")
-    p.add_argument("--engine", choices=("twin", "fast"), default="twin",
-                   help="open-loop only: MuJoCo twin (default) or the fast Eq. 6 model")
+    p.add_argument(
+        "--connect",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="URL",
+        help="also stream to a running Rerun viewer (default URL if none given)",
+    )
+    p.add_argument(
+        "--engine",
+        choices=("twin", "fast"),
+        default="twin",
+        help="open-loop only: MuJoCo twin (default) or the fast Eq. 6 model",
+    )
     p.set_defaults(execute=execute)
 
 
@@ -90,8 +110,10 @@ def _run_closed_loop(scenario, params, params_path, name, seed):
     for axis, m in metrics.items():
         if not isinstance(m, dict) or "isolation_percent" not in m:
             continue
-        print(f"{axis:<10} {m['isolation_percent']:>8.2f} {m['max_abs_error_deg_s']:>16.4f} "
-              f"{m['rms_error_deg_s']:>15.4f}")
+        print(
+            f"{axis:<10} {m['isolation_percent']:>8.2f} {m['max_abs_error_deg_s']:>16.4f} "
+            f"{m['rms_error_deg_s']:>15.4f}"
+        )
     payload = {
         "scenario": name,
         "parameters_file": str(params_path),

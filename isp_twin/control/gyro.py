@@ -38,8 +38,15 @@ class Gyro:
         rng: noise source.
     """
 
-    def __init__(self, scale_count_per_deg_s: float, noise_deg_s: float, bandwidth_hz: float,
-                 sample_every: int, dt: float, rng: np.random.Generator):
+    def __init__(
+        self,
+        scale_count_per_deg_s: float,
+        noise_deg_s: float,
+        bandwidth_hz: float,
+        sample_every: int,
+        dt: float,
+        rng: np.random.Generator,
+    ):
         if not scale_count_per_deg_s > 0:
             raise ValueError(f"gyro scale must be > 0, got {scale_count_per_deg_s}")
         if noise_deg_s < 0:

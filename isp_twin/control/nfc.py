@@ -41,8 +41,9 @@ class FrictionFeedForward:
         rest_rate: |omega_2| below which the axis counts as at rest [rad/s].
     """
 
-    def __init__(self, params: RateParams, gamma: float = 0.95, taps: int = 4,
-                 rest_rate: float = 0.0):
+    def __init__(
+        self, params: RateParams, gamma: float = 0.95, taps: int = 4, rest_rate: float = 0.0
+    ):
         if not 0.0 < gamma <= 1.0:
             raise ValueError(f"NFC gamma must lie in (0, 1], got {gamma}")
         if taps < 1:

@@ -32,8 +32,13 @@ class InnerRateLoop:
         nfc: the friction feed-forward, or None for PI only.
     """
 
-    def __init__(self, pi: PIController, bound: Bound, notch: NotchFilter | None = None,
-                 nfc: FrictionFeedForward | None = None):
+    def __init__(
+        self,
+        pi: PIController,
+        bound: Bound,
+        notch: NotchFilter | None = None,
+        nfc: FrictionFeedForward | None = None,
+    ):
         self.pi = pi
         self.bound = bound
         self.notch = notch

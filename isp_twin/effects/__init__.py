@@ -26,7 +26,7 @@ from isp_twin.parameters import EffectSpec
 __all__ = ["Effect", "EFFECTS", "register", "make_effect"]
 
 #: Effect name -> class; filled by `register`.
-EFFECTS: dict[str, type["Effect"]] = {}
+EFFECTS: dict[str, type[Effect]] = {}
 
 
 class Effect:
@@ -79,14 +79,29 @@ def make_effect(spec: EffectSpec, dt: float = 1e-3) -> Effect:
     return cls(spec.params, dt)
 
 
-# Each module registers its effect on import.
-from isp_twin.effects import torque_offset  # noqa: E402,F401
-from isp_twin.effects import cable_spring  # noqa: E402,F401
-from isp_twin.effects import cogging  # noqa: E402,F401
-from isp_twin.effects import deadzone  # noqa: E402,F401
-from isp_twin.effects import input_delay  # noqa: E402,F401
-from isp_twin.effects import lugre  # noqa: E402,F401
-from isp_twin.effects import resonance  # noqa: E402,F401
-from isp_twin.effects import saturation  # noqa: E402,F401
-from isp_twin.effects import sensor_bias  # noqa: E402,F401
-from isp_twin.effects import unbalance  # noqa: E402,F401
+# Each module registers its effect on import (after the base class exists).
+from isp_twin.effects import (  # noqa: E402
+    cable_spring,
+    cogging,
+    deadzone,
+    input_delay,
+    lugre,
+    resonance,
+    saturation,
+    sensor_bias,
+    torque_offset,
+    unbalance,
+)
+
+__all__ += [
+    "cable_spring",
+    "cogging",
+    "deadzone",
+    "input_delay",
+    "lugre",
+    "resonance",
+    "saturation",
+    "sensor_bias",
+    "torque_offset",
+    "unbalance",
+]
