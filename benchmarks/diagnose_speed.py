@@ -27,6 +27,9 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--samples", type=int, default=6000)
     ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument(
+        "--iterations", type=int, default=6, help="Levenberg-Marquardt iterations per fit"
+    )
     args = ap.parse_args()
     params = load_parameters(default_parameters_path())
     rate = params.axis("inner_az").rate_params()
@@ -43,7 +46,9 @@ def main() -> None:
         ("3 train, cross-validation", runs, []),
     ):
         t0 = time.perf_counter()
-        diag = diagnose(train, params, "inner_az", held, max_rounds=args.rounds)
+        diag = diagnose(
+            train, params, "inner_az", held, max_rounds=args.rounds, max_iter=args.iterations
+        )
         wall = time.perf_counter() - t0
         j = diag.to_json()
         print(
