@@ -202,6 +202,16 @@ def test_identify_command_end_to_end(tmp_path, paper_params, truth, capsys):
     got = ps.axis("inner_az").rate_params()
     assert rmse(got, data) / DEG == pytest.approx(summary["cost_deg_s"], rel=1e-6)
     assert rmse(got, data) <= 1.05 * rmse(truth.rate_params(), data)
+    # ...and the identified twin runs the closed-loop scenarios.
+    scenario = tmp_path / "short.yaml"
+    scenario.write_text(
+        "kind: closed_loop\nduration_s: 3.0\n"
+        "turntable:\n  table_yaw: {amplitude_deg: 1.0, freq_hz: 0.5}\n"
+    )
+    metrics = tmp_path / "m.json"
+    run = ["run", str(scenario), "--params", str(out), "--no-recording", "--json", str(metrics)]
+    assert main(run) == 0
+    assert json.loads(metrics.read_text())["parameters_file"] == str(out)
 
 
 def test_identify_command_bad_data_is_one_line(tmp_path, capsys):
