@@ -8,13 +8,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.atomic import write_text_atomic
+from isp_twin.commands.data_options import add_data_options, mapping_from_args
 from isp_twin.errors import ParameterError
-from isp_twin.measured import (
-    DataMapping,
-    load_data_description,
-    load_measured,
-    mapping_from_options,
-)
+from isp_twin.measured import load_measured
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.units import DEG
 
@@ -39,16 +35,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--holdout", nargs="+", default=[], metavar="DATA", help="held-out runs")
     p.add_argument("--out", type=Path, default=None, help="updated parameter file (YAML)")
     p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
-    p.add_argument(
-        "--map",
-        action="append",
-        default=[],
-        metavar="KEY=SOURCE[*SCALE]",
-        help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad",
-    )
-    p.add_argument(
-        "--describe", type=Path, default=None, help="YAML data description (instead of --map)"
-    )
+    add_data_options(p)
     p.add_argument(
         "--candidates",
         default=None,
@@ -87,14 +74,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(execute=execute)
 
 
-def _mapping(args) -> DataMapping | None:
-    if args.describe is not None:
-        return load_data_description(args.describe)
-    if args.map:
-        return mapping_from_options(args.map)
-    return None
-
-
 def execute(args: argparse.Namespace) -> int:
     from isp_twin.diagnosis.report import write_recording, write_report
     from isp_twin.diagnosis.search import diagnose
@@ -104,7 +83,7 @@ def execute(args: argparse.Namespace) -> int:
     if args.iterations < 1:
         raise ParameterError(f"--iterations must be >= 1, got {args.iterations}")
     params = load_parameters(args.params)
-    mapping = _mapping(args)
+    mapping = mapping_from_args(args)
     train = [load_measured(p, mapping) for p in args.data]
     holdout = [load_measured(p, mapping) for p in args.holdout]
     candidates = None

@@ -8,15 +8,11 @@ from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.atomic import write_text_atomic
+from isp_twin.commands.data_options import add_data_options, mapping_from_args
 from isp_twin.errors import DataError
 from isp_twin.identification import SIDES, Settings, identify, to_axis_params
 from isp_twin.identification_report import result_json, write_report
-from isp_twin.measured import (
-    DataMapping,
-    load_data_description,
-    load_measured,
-    mapping_from_options,
-)
+from isp_twin.measured import load_measured
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG
@@ -46,23 +42,7 @@ def add_parser(sub) -> None:
         help="prior parameter file (default: the paper's Table 2)",
     )
     p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
-    p.add_argument(
-        "--map",
-        action="append",
-        default=[],
-        metavar="KEY=SOURCE[*SCALE]",
-        help="column mapping, e.g. t=data:0 u=data:4 omega=data:3*rad/s theta=data:2*rad",
-    )
-    p.add_argument(
-        "--describe", type=Path, default=None, help="YAML data description (instead of --map)"
-    )
-    p.add_argument(
-        "--initial-angle",
-        type=float,
-        default=0.0,
-        metavar="DEG",
-        help="angle at the first sample [deg] for rate-only data (the angle is integrated)",
-    )
+    add_data_options(p)
     p.add_argument(
         "--side",
         default="measured",
@@ -94,18 +74,8 @@ def add_parser(sub) -> None:
     p.set_defaults(execute=execute)
 
 
-def _mapping(args) -> DataMapping | None:
-    if args.describe is not None:
-        return load_data_description(args.describe)
-    if args.map:
-        return mapping_from_options(args.map, initial_angle_deg=args.initial_angle)
-    if args.initial_angle:
-        return DataMapping(initial_angle_deg=args.initial_angle)
-    return None
-
-
 def execute(args) -> int:
-    mapping = _mapping(args)
+    mapping = mapping_from_args(args)
     train = [load_measured(p, mapping) for p in args.data]
     validation = [load_measured(p, mapping) for p in args.validate]
     prior_set = load_parameters(args.prior or default_parameters_path())
