@@ -55,10 +55,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from isp_twin.axis_model import simulate
+from isp_twin.effects import make_effect
 from isp_twin.errors import DataError, ParameterError
 from isp_twin.friction import regime_index
 from isp_twin.measured import MeasuredData
-from isp_twin.parameters import REGIMES, AxisParams, RateParams, RegimeParams
+from isp_twin.parameters import REGIMES, AxisParams, EffectSpec, RateParams, RegimeParams
 from isp_twin.units import DEG
 
 __all__ = [
@@ -149,6 +150,9 @@ class IdentificationResult:
         evaluations: simulated parameter sets in total.
         wall_time_s: duration [s].
         status: short text on how the search ended.
+        settings: the settings used.
+        effects: the prior's extra effects, held fixed in every simulation
+            of the fit (and of the report).
     """
 
     rate: RateParams
@@ -165,6 +169,7 @@ class IdentificationResult:
     wall_time_s: float
     status: str
     settings: Settings = field(default_factory=Settings)
+    effects: tuple[EffectSpec, ...] = ()
 
     @property
     def vector(self) -> np.ndarray:
@@ -222,9 +227,17 @@ def _omega0(d: MeasuredData, rest: float) -> float:
 
 
 def simulate_data(
-    rate: RateParams, d: MeasuredData, side: str = "measured", rest_rate_deg_s: float = 0.1
+    rate: RateParams,
+    d: MeasuredData,
+    side: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
 ):
-    """Eq. 6 driven by the run's command and measured angle; `AxisResponse`."""
+    """Eq. 6 driven by the run's command and measured angle; `AxisResponse`.
+
+    `effects` (a parameter file's ``effects:``) are held fixed; they are built
+    afresh for every simulation because they carry state.
+    """
     return simulate(
         rate,
         d.u,
@@ -232,6 +245,7 @@ def simulate_data(
         omega0=_omega0(d, rest_rate_deg_s * DEG),
         angle0=float(d.angle[0]),
         angle_measured=side_angle(d, side),
+        effects=[make_effect(e, d.dt) for e in effects],
     )
 
 
@@ -240,13 +254,15 @@ def residuals(
     data: Sequence[MeasuredData],
     side: str = "measured",
     rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
 ) -> np.ndarray:
     """Simulated minus measured rate [rad/s], sample 0 of each set left out.
 
     Shape (P, M) for batched params (M = total samples), else (M,).
     """
     parts = [
-        simulate_data(rate, d, side, rest_rate_deg_s).omega[..., 1:] - d.omega[1:] for d in data
+        simulate_data(rate, d, side, rest_rate_deg_s, effects).omega[..., 1:] - d.omega[1:]
+        for d in data
     ]
     return np.concatenate(parts, axis=-1)
 
@@ -256,9 +272,10 @@ def rmse(
     data: Sequence[MeasuredData],
     side: str = "measured",
     rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
 ) -> float | np.ndarray:
     """Eq. 9: RMS rate error over all sets at once [rad/s]."""
-    e = residuals(rate, data, side, rest_rate_deg_s)
+    e = residuals(rate, data, side, rest_rate_deg_s, effects)
     return np.sqrt(np.mean(e**2, axis=-1))
 
 
@@ -271,17 +288,22 @@ def equation_error_estimate(
     side: str = "measured",
     rest_rate_deg_s: float = 0.1,
     min_samples: int = 50,
+    effects: Sequence[EffectSpec] = (),
 ) -> RateParams:
     """One-step-ahead least squares per regime (see module doc, step 3).
 
     Regimes with fewer than `min_samples` usable samples, or whose fit is
     not physical (a outside (0, 1), a non-positive level), keep the prior.
+    Known `effects` are driven by the measured angle and rate
+    (`_effect_drive`) and taken out of the regression.
     """
     rest = rest_rate_deg_s * DEG
     rows: list[list[np.ndarray]] = [[] for _ in range(4)]
     for d in data:
-        w0, w1, u0 = d.omega[:-1], d.omega[1:], d.u[:-1]
+        w0, w1 = d.omega[:-1], d.omega[1:]
         y = side_angle(d, side)[:-1]
+        u0, more = _effect_drive(d, y, effects)
+        w1 = w1 - more
         moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
         breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(u0))
         r_move = regime_index(y, w0)
@@ -320,6 +342,30 @@ def equation_error_estimate(
         if 0.0 < a < 1.0 and g > 0 and c > 0 and s > 0:
             x[r] = (a, g, s, c, alpha)
     return RateParams.from_vector(x.ravel())
+
+
+def _effect_drive(
+    d: MeasuredData, side_y: np.ndarray, effects: Sequence[EffectSpec]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Command and extra rate drive of known effects along a run, shapes (N-1,).
+
+    Returns the command after the effects' `command` hooks [digits] and the
+    effects' acceleration times T [rad/s per sample], both evaluated on the
+    measured angle and rate (as `simulate` feeds them, one step late). Sensor
+    effects are not inverted: they only bias the start.
+    """
+    u = np.array(d.u[:-1], dtype=float)
+    more = np.zeros_like(u)
+    if not effects:
+        return u, more
+    built = [make_effect(e, d.dt) for e in effects]
+    for e in built:
+        e.reset()
+    for k in range(u.size):
+        for e in built:
+            u[k] = e.command(u[k])
+        more[k] = sum(float(e.acceleration(side_y[k], d.omega[k])) for e in built) * d.dt
+    return u, more
 
 
 # ------------------------------------------------------------ search
@@ -433,8 +479,9 @@ def identify(
     Args:
         data: the identification runs (same sample period; command in the
             unit the prior's Ke refers to).
-        prior: prior parameters: b of every regime, and the values kept for
-            regimes the data do not visit.
+        prior: prior parameters: b of every regime, the values kept for
+            regimes the data do not visit, and the extra effects (held fixed:
+            the fit is of Eq. 6 with them, as the twin runs it).
         settings: search budget, seed, regime rules.
         progress: called as ``progress(stage, step, best_cost_rad_s)`` with
             stage "search" (per generation) or "refine" (per evaluation,
@@ -453,6 +500,7 @@ def identify(
         raise DataError(f"identification sets differ in sample period: {sorted(dts)} s")
     s = settings
     prior_rate = prior.rate_params()
+    effects = tuple(prior.effects)
     visits = regime_visits(data, s.side, s.rest_rate_deg_s)
     visited = visits >= s.min_regime_samples
     if not visited.any():
@@ -462,7 +510,7 @@ def identify(
         )
     free = np.repeat(visited, 5)
     x_init = equation_error_estimate(
-        data, prior_rate, s.side, s.rest_rate_deg_s, s.min_regime_samples
+        data, prior_rate, s.side, s.rest_rate_deg_s, s.min_regime_samples, effects
     )
     base = prior_rate.to_vector()
     base[free] = x_init.to_vector()[free]
@@ -478,7 +526,7 @@ def identify(
     def batch_cost(xt: np.ndarray) -> np.ndarray:  # DE: xt shape (n_free, S)
         nonlocal evaluations
         evaluations += xt.shape[1]
-        return np.atleast_1d(rmse(full(xt.T), data, s.side, s.rest_rate_deg_s))
+        return np.atleast_1d(rmse(full(xt.T), data, s.side, s.rest_rate_deg_s, effects))
 
     initial_cost = float(batch_cost(x0[:, None])[0])
     history: list[float] = []
@@ -522,7 +570,7 @@ def identify(
         h = 1e-6 * np.maximum(np.abs(xf), 1e-9)
         pts = np.vstack([xf, xf + np.diag(h)])
         evaluations += pts.shape[0]
-        e = residuals(full(pts), data, s.side, rest)
+        e = residuals(full(pts), data, s.side, rest, effects)
         cache.update(x=xf.copy(), e=e[0], j=((e[1:] - e[0]) / h[:, None]).T)
         if progress is not None:
             progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
@@ -555,7 +603,7 @@ def identify(
         status += f"; least-squares refinement ({ls.nfev} evaluations, {ls.message.rstrip('.')})"
     b = np.array([r.b for r in prior.regimes])
     x_best, moved = _robust_to_storage(
-        x_best, lambda xs: rmse(full(xs), data, s.side, rest), free, b
+        x_best, lambda xs: rmse(full(xs), data, s.side, rest, effects), free, b
     )
     if moved:
         status += (
@@ -573,7 +621,7 @@ def identify(
     sensitive = np.linalg.norm(j, axis=0) > 0
     ident[free] = sensitive & (ci_floor_f < _MAX_RELATIVE_CI * np.abs(x_best))
     ci[free] = np.where(ident[free], ci_f, np.nan)
-    rmse_train = {d.name: float(rmse(rate, [d], s.side, rest)) for d in data}
+    rmse_train = {d.name: float(rmse(rate, [d], s.side, rest, effects)) for d in data}
     return IdentificationResult(
         rate=rate,
         ci95=ci,
@@ -589,6 +637,7 @@ def identify(
         wall_time_s=time.perf_counter() - start,
         status=status,
         settings=s,
+        effects=effects,
     )
 
 
@@ -596,7 +645,8 @@ def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = 
     """The paper form (Table 2) of a result, b fixed to the prior's b.
 
     Ke = b·Ke / b etc.; the half-widths scale the same way (b carries no
-    uncertainty: it is fixed). Regimes not identified keep the prior values.
+    uncertainty: it is fixed). Regimes not identified keep the prior values;
+    the prior's effects are kept (they were part of the fitted model).
     """
     b = tuple(r.b for r in prior.regimes)
     regimes = list(result.rate.to_regimes(b))

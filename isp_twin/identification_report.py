@@ -39,7 +39,10 @@ PAPER_TO_RATE: dict[str, str | None] = {
 def rmse_table(result: IdentificationResult, data: Sequence[MeasuredData]) -> dict[str, float]:
     """RMS rate error per set [deg/s] (Table 3)."""
     s = result.settings
-    return {d.name: float(rmse(result.rate, [d], s.side, s.rest_rate_deg_s)) / DEG for d in data}
+    return {
+        d.name: float(rmse(result.rate, [d], s.side, s.rest_rate_deg_s, result.effects)) / DEG
+        for d in data
+    }
 
 
 def _identifiable(result: IdentificationResult, regime: int, field: str) -> bool:
@@ -149,7 +152,7 @@ def _plot(result: IdentificationResult, d: MeasuredData, path: Path, title: str)
     import matplotlib.pyplot as plt
 
     s = result.settings
-    model = simulate_data(result.rate, d, s.side, s.rest_rate_deg_s).omega
+    model = simulate_data(result.rate, d, s.side, s.rest_rate_deg_s, result.effects).omega
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 5.5))
     ax1.plot(d.t, d.omega / DEG, lw=0.8, label="measured")
     ax1.plot(d.t, model / DEG, lw=0.8, ls="--", label="model (Eq. 6)")

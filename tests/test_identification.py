@@ -300,3 +300,45 @@ def test_identify_command_reads_mat_through_a_data_description(tmp_path):
     summary = json.loads(js.read_text())
     assert summary["regime_identified"] == {"R+": True, "R-": False, "L+": False, "L-": False}
     assert load_parameters(out).axis("inner_az").identified == (True, False, False, False)
+
+
+def _with_effect(data, truth, spec):
+    """The runs re-simulated (noise-free) with Eq. 6 plus one extra effect."""
+    from isp_twin.axis_model import simulate
+    from isp_twin.effects import make_effect
+
+    out = []
+    for d in data:
+        res = simulate(
+            truth.rate_params(),
+            d.u,
+            d.dt,
+            angle0=float(d.angle[0]),
+            effects=[make_effect(spec, d.dt)],
+        )
+        out.append(dataclasses.replace(d, omega=res.omega, angle=res.angle))
+    return out
+
+
+def test_identification_keeps_the_prior_effects_in_the_fit_and_the_file(
+    paper_params, truth, tmp_path
+):
+    from isp_twin.parameters import EffectSpec
+
+    # A centring cable spring: 300 rad/s^2 per rad is a pull of 15.7 rad/s^2
+    # at 3 deg, of the order of the friction levels (b*Ts/T ~ 10-40 rad/s^2).
+    spring = EffectSpec("cable_spring", {"stiffness_1_s2": 300.0, "offset_rad_s2": 0.0})
+    data = _with_effect(_data(paper_params, 0.0), truth, spring)
+    declared = dataclasses.replace(_perturbed_prior(truth), effects=(spring,))
+    result = identify(data, declared, FAST)
+    x_true = truth.rate_params().to_vector()
+    assert result.effects == (spring,)
+    assert np.abs(result.vector / x_true - 1).max() < 0.01
+    out = tmp_path / "with_spring.yaml"
+    save_parameters(paper_params.with_axis("inner_az", to_axis_params(result, declared)), out)
+    assert load_parameters(out).axis("inner_az").effects == (spring,)
+    # Without the spring declared, Eq. 6 alone cannot explain the same data.
+    blind = identify(data, _perturbed_prior(truth), FAST)
+    assert blind.effects == ()
+    assert blind.cost > 10 * result.cost
+    assert np.abs(blind.vector / x_true - 1).max() > 0.01
