@@ -95,6 +95,7 @@ def result_json(
         "evaluations": result.evaluations,
         "wall_time_s": result.wall_time_s,
         "residual_lag1_correlation": result.rho,
+        "effects_held": [{"name": e.name, "parameters": dict(e.params)} for e in result.effects],
     }
 
 
@@ -190,6 +191,9 @@ def write_report(
         f"(equation-error start {result.initial_cost / DEG:.4g} deg/s).",
         f"Half-plane from: `{result.settings.side}` angle. Residual lag-1 correlation "
         f"{result.rho:.3f} (intervals inflated by (1+rho)/(1-rho) when positive).",
+        "Extra effects of the prior, held fixed in the fit and in every simulation here: "
+        + (", ".join(e.name for e in result.effects) or "none")
+        + ".",
         "",
         "## Regime visits",
         "",

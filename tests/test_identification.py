@@ -337,6 +337,12 @@ def test_identification_keeps_the_prior_effects_in_the_fit_and_the_file(
     out = tmp_path / "with_spring.yaml"
     save_parameters(paper_params.with_axis("inner_az", to_axis_params(result, declared)), out)
     assert load_parameters(out).axis("inner_az").effects == (spring,)
+    # The report's numbers come from the model with the spring as well.
+    from isp_twin.identification_report import result_json
+
+    summary = result_json(result, "inner_az", to_axis_params(result, declared), data[:1])
+    assert summary["effects_held"] == [{"name": "cable_spring", "parameters": spring.params}]
+    assert max(summary["rmse_validation"].values()) < 1e-9
     # Without the spring declared, Eq. 6 alone cannot explain the same data.
     blind = identify(data, _perturbed_prior(truth), FAST)
     assert blind.effects == ()

@@ -201,6 +201,8 @@ def _cv_residuals(
             starts={f.name: dict(f.params) for f in fits if f.name != BASELINE},
             max_iter=max_iter,
             rate_starts={f.name: f.rate_vector for f in fits},
+            # The all-run fits were polished already; a fold only adjusts.
+            polish=False,
         )
         held = holdout_residuals(_stack_runs([runs[k]], side=side), [folds[f.name] for f in fits])
         for i, parts in enumerate(held):
