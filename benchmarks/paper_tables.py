@@ -104,6 +104,7 @@ def scan_knobs(specs: list[str], runs: int, jobs: int, validate: bool) -> None:
         tuple(zip([p for p, _ in axes], combo))
         for combo in itertools.product(*[v for _, v in axes])
     ]
+    _apply(load_scenario(TABLE4_SCENARIOS[(1 / 6, math.pi)]), grid[0])  # bad paths: fail here
     fit = [(c, n) for c, n in TABLE4_SCENARIOS.items() if math.isclose(c[0], 1 / 6)]
     val = [(c, n) for c, n in TABLE4_SCENARIOS.items() if math.isclose(c[0], 0.5)]
     campaigns = [("tracking_0_5Hz", TABLE5), ("turbulence_1_6Hz", TABLE6)]
