@@ -217,7 +217,7 @@ def diagnose(
     holdout: Sequence = (),
     candidates: Sequence[str] | None = None,
     max_rounds: int = 2,
-    max_iter: int = 6,
+    max_iter: int = 8,
     cv_iter: int = 2,
     side: str = "measured",
 ) -> Diagnosis:
@@ -233,7 +233,9 @@ def diagnose(
         candidates: effect names to test (default: `LIBRARY` minus the
             effects the axis already has).
         max_rounds: at most this many effects are added.
-        max_iter: Levenberg-Marquardt iterations per fit.
+        max_iter: Levenberg-Marquardt iterations per fit (8: LuGre's bristle
+            force trades against the friction levels and can need more than
+            6, docs/diagnosis.md "Effect-only polish").
         cv_iter: iterations per cross-validation fold (warm-started).
         side: half-plane of the regimes: ``measured`` (sign of the measured
             angle, the paper's rule), ``right`` or ``left`` (fixed: a motor
