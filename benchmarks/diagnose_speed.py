@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from isp_twin.diagnosis.search import diagnose
+from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, diagnose
 from isp_twin.diagnosis.synthetic import excitation, make_run, random_effect
 from isp_twin.parameters import load_parameters
 from isp_twin.resources import default_parameters_path
@@ -28,7 +28,10 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=6000)
     ap.add_argument("--rounds", type=int, default=1)
     ap.add_argument(
-        "--iterations", type=int, default=6, help="Levenberg-Marquardt iterations per fit"
+        "--iterations",
+        type=int,
+        default=DEFAULT_ITERATIONS,
+        help="Levenberg-Marquardt iterations per fit",
     )
     args = ap.parse_args()
     params = load_parameters(default_parameters_path())

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.data_options import add_data_options, mapping_from_args
+from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
 from isp_twin.measured import load_measured
 from isp_twin.parameters import AXES, load_parameters, save_parameters
@@ -51,7 +52,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--max-rounds", type=int, default=2, help="at most this many effects are added")
     p.add_argument(
-        "--iterations", type=int, default=6, help="Levenberg-Marquardt iterations per refit"
+        "--iterations",
+        type=int,
+        default=DEFAULT_ITERATIONS,
+        help="Levenberg-Marquardt iterations per refit",
     )
     p.add_argument(
         "--json", type=Path, default=None, metavar="PATH", help="write the result as JSON"

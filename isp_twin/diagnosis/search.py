@@ -32,6 +32,9 @@ from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
 
 __all__ = ["LIBRARY", "Diagnosis", "RoundResult", "diagnose", "split_in_time"]
 
+#: Levenberg-Marquardt iterations per refit (8: LuGre needs them, docs/diagnosis.md).
+DEFAULT_ITERATIONS = 8
+
 #: The candidate effects, in report order.
 LIBRARY: tuple[str, ...] = (
     "cogging",
@@ -217,7 +220,7 @@ def diagnose(
     holdout: Sequence = (),
     candidates: Sequence[str] | None = None,
     max_rounds: int = 2,
-    max_iter: int = 8,
+    max_iter: int = DEFAULT_ITERATIONS,
     cv_iter: int = 2,
     side: str = "measured",
 ) -> Diagnosis:
