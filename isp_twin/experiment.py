@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from isp_twin.axis_model import simulate
 from isp_twin.errors import ParameterError
 from isp_twin.measured import MeasuredData
+from isp_twin.open_loop import simulate_open_loop
 from isp_twin.parameters import AXES, ParameterSet
 from isp_twin.units import DEG
 
@@ -94,31 +94,6 @@ def _stop_rad(axis: str) -> float | None:
     return INNER_STOP_DEG * DEG if axis.startswith("inner") else None
 
 
-def _run_fast(params: ParameterSet, axis: str, exc: Excitation, u: np.ndarray):
-    rate = params.axis(axis).rate_params()
-    res = simulate(rate, u, exc.dt, angle0=exc.initial_angle_deg * DEG, angle_limit=_stop_rad(axis))
-    return res.omega, res.angle
-
-
-def _run_twin(params: ParameterSet, axis: str, exc: Excitation, u: np.ndarray):
-    from isp_twin.twin import GIMBALS, Twin  # MuJoCo only when asked for
-
-    twin = Twin(params)
-    index = list(GIMBALS).index(axis)
-    twin.reset({axis: exc.initial_angle_deg * DEG})
-    omega = np.empty(exc.n_samples)
-    angle = np.empty(exc.n_samples)
-    command = np.zeros(len(GIMBALS))
-    state = twin.state()
-    omega[0], angle[0] = state.rate[index], state.angle[index]
-    for k in range(1, exc.n_samples):
-        command[index] = u[k - 1]
-        twin.step(command)
-        state = twin.state()
-        omega[k], angle[k] = state.rate[index], state.angle[index]
-    return omega, angle
-
-
 def generate_openloop(
     params: ParameterSet,
     axis: str = "inner_az",
@@ -166,12 +141,20 @@ def generate_openloop(
         )
     if engine not in ("fast", "twin"):
         raise ParameterError(f"engine '{engine}' unknown; allowed: fast, twin")
-    exc = Excitation(
-        amplitude_digits, freq_hz, offset_digits, initial_angle_deg, n_samples, dt, name
+    # The open-loop experiment of Fig. 2 with Eq. 7's input; both engines
+    # apply the parameter file's effects.
+    response = simulate_open_loop(
+        params,
+        axis=axis,
+        amplitude_digits=amplitude_digits,
+        freq_hz=freq_hz,
+        offset_digits=offset_digits,
+        duration_s=(n_samples - 1) * dt,
+        initial_angle_rad=initial_angle_deg * DEG,
+        angle_limit_rad=_stop_rad(axis),
+        engine=engine,
     )
-    t, u = exc.command()
-    run = _run_fast if engine == "fast" else _run_twin
-    omega, angle = run(params, axis, exc, u)
+    t, u, omega, angle = response.t, response.u, response.omega, response.angle
     rng = np.random.default_rng(seed)
     if gyro_noise_deg_s > 0:
         omega = omega + rng.normal(0.0, gyro_noise_deg_s * DEG, size=omega.shape)
