@@ -101,3 +101,36 @@ def test_generate_command_writes_loadable_csv(tmp_path, capsys):
         == 0
     )
     assert len(load_measured(tmp_path / "one" / "eq7.csv")) == 500
+
+
+def test_the_parameter_files_effects_are_in_the_generated_data(paper_params):
+    from dataclasses import replace
+
+    from isp_twin.effects import make_effect
+    from isp_twin.parameters import EffectSpec
+
+    spring = EffectSpec("cable_spring", {"stiffness_1_s2": 300.0, "offset_rad_s2": 0.0})
+    axis = replace(paper_params.axis("inner_az"), effects=(spring,))
+    sprung = paper_params.with_axis("inner_az", axis)
+    e = PAPER_SET[0]
+    kw = dict(
+        amplitude_digits=e.amplitude_digits,
+        freq_hz=e.freq_hz,
+        offset_digits=e.offset_digits,
+        initial_angle_deg=e.initial_angle_deg,
+        gyro_noise_deg_s=0.0,
+        resolver_lsb_deg=0.0,
+    )
+    data = generate_openloop(sprung, **kw)
+    t, u = e.command()
+    expected = simulate(
+        axis.rate_params(),
+        u,
+        e.dt,
+        angle0=e.initial_angle_deg * DEG,
+        angle_limit=INNER_STOP_DEG * DEG,
+        effects=[make_effect(spring, e.dt)],
+    )
+    np.testing.assert_array_equal(data.omega, expected.omega)
+    plain = generate_openloop(paper_params, **kw)
+    assert np.abs(plain.omega - data.omega).max() > 1e-3
