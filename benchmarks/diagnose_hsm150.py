@@ -14,14 +14,12 @@ figure, recording and JSON are in DIR.
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
 
 # The sibling script (run as a script, benchmarks/ is on sys.path) owns the
 # data location, the column mapping and the catalogue prior.
-from identify_hsm150 import MAP, data_files, prior
+from identify_hsm150 import data_files, prior, run_cli
 
-from isp_twin.cli import main as cli
 from isp_twin.parameters import save_parameters
 
 TRAIN = ["idf_neg_0.04_1", "idf_pos_0.06_1", "idf_neg_0.05_1", "idf_pos_0.07_1"]
@@ -56,12 +54,7 @@ def main() -> None:
         "--json",
         str(args.out / "hsm150_diagnosis.json"),
     ]
-    for m in MAP:
-        argv += ["--map", m]
-    print("isp-twin " + " ".join(argv))
-    start = time.perf_counter()
-    code = cli(argv)
-    print(f"exit {code}, wall {time.perf_counter() - start:.1f} s")
+    run_cli(argv)
 
 
 if __name__ == "__main__":

@@ -57,6 +57,17 @@ def data_files(names: list[str]) -> list[str]:
     return [str(DATA / f"{n}.mat") for n in names]
 
 
+def run_cli(argv: list[str]) -> int:
+    """Run an isp-twin command on HSM150 files (the column mapping added),
+    printing the command, its exit code and wall time."""
+    argv = argv + [opt for m in MAP for opt in ("--map", m)]
+    print("isp-twin " + " ".join(argv))
+    start = time.perf_counter()
+    code = cli(argv)
+    print(f"exit {code}, wall {time.perf_counter() - start:.1f} s")
+    return code
+
+
 def prior() -> ParameterSet:
     b = T / J_CATALOGUE / DEG  # (deg/s) per N·m per sample
     a = 1 - B_CATALOGUE * T / J_CATALOGUE
@@ -101,12 +112,7 @@ def main() -> None:
         "--refine-evaluations",
         str(args.refine_evaluations),
     ]
-    for m in MAP:
-        argv += ["--map", m]
-    print("isp-twin " + " ".join(argv))
-    start = time.perf_counter()
-    code = cli(argv)
-    print(f"exit {code}, wall {time.perf_counter() - start:.1f} s")
+    code = run_cli(argv)
     if code:
         return
     summary = json.loads((args.out / "hsm150.json").read_text())
