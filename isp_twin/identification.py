@@ -61,10 +61,14 @@ from isp_twin.friction import regime_index
 from isp_twin.measured import MeasuredData
 from isp_twin.parameters import REGIMES, AxisParams, EffectSpec, RateParams, RegimeParams
 from isp_twin.units import DEG
+from isp_twin.verdict import noise_floor_of
 
 __all__ = [
     "RATE_FIELDS",
     "SIDES",
+    "TIMINGS",
+    "Timing",
+    "rate_noise",
     "Settings",
     "IdentificationResult",
     "fused_angle",
@@ -93,6 +97,36 @@ _MAX_RELATIVE_CI = 0.5
 
 
 @dataclass(frozen=True)
+class Timing:
+    """What a sample of the data means in time, for the model's read-out.
+
+    Attributes:
+        side_shift: when in each step the half-plane is read [samples after
+            the step's start] (`side_angle`).
+        gyro_average: the gyro reports the rate averaged over the sample
+            period (most rate sensors integrate or filter), modelled as the
+            mean of the model's rate at both ends of the step; else the rate
+            at the sample instant (Eq. 6 as written).
+    """
+
+    side_shift: float = 0.0
+    gyro_average: bool = False
+
+    def describe(self) -> str:
+        kind = "averaged over the sample" if self.gyro_average else "at the sample"
+        return f"gyro rate {kind}, half-plane read at step start + {self.side_shift:g} sample"
+
+
+#: Read-out timings tried by `identify` (``side="measured"``); the paper's Eq. 6 first.
+#: (A gyro averaging over the sample, modelled as the mean of the rate at both
+#: ends of the step, was tried on a continuous 8 ms axis with an averaging gyro
+#: and fitted worse than the point read-out at every shift: not offered.)
+TIMINGS: tuple[Timing, ...] = tuple(
+    Timing(shift, avg) for avg in (False, True) for shift in (0.0, 0.25, 0.5, 0.75)
+)
+
+
+@dataclass(frozen=True)
 class Settings:
     """Identification settings.
 
@@ -105,22 +139,30 @@ class Settings:
         min_regime_samples: moving samples below which a regime is not identified.
         rest_rate_deg_s: |rate| at or below this counts as "at rest" [deg/s].
         side: half-plane selection, one of `SIDES`.
-        search_factor: DE bounds span the initial estimate and the prior,
-            widened by this factor (for the pole: on 1 - a); both are members
-            of the first population.
+        search_factor: unused (kept for old callers).
         confidence: level of the intervals.
+        converged_ratio: the global search runs when the least-squares fit
+            from the data's own start ends above this multiple of the rate
+            noise (`rate_noise`).
+        prior_in_search: also start from the prior's values (by default the
+            prior only supplies b, unvisited regimes and held effects).
+        timing: the data's read-out timing (`Timing`); None: the one of
+            `TIMINGS` that fits best (``side="measured"``; else Eq. 6's).
     """
 
     seed: int = 0
     generations: int = 20
     population: int = 40
     refine: bool = True
-    refine_evaluations: int = 60
+    refine_evaluations: int = 200
     min_regime_samples: int = 50
     rest_rate_deg_s: float = 0.1
     side: str = "measured"
     search_factor: float = 3.0
     confidence: float = 0.95
+    converged_ratio: float = 1.2
+    prior_in_search: bool = False
+    timing: Timing | None = None
 
     def __post_init__(self):
         if self.side not in SIDES:
@@ -153,6 +195,9 @@ class IdentificationResult:
         settings: the settings used.
         effects: the prior's extra effects, held fixed in every simulation
             of the fit (and of the report).
+        timing: the read-out timing the fit used (`Timing`).
+        noise: white rate-noise standard deviation of the data (`rate_noise`),
+            the error a perfect model leaves [rad/s].
     """
 
     rate: RateParams
@@ -170,6 +215,8 @@ class IdentificationResult:
     status: str
     settings: Settings = field(default_factory=Settings)
     effects: tuple[EffectSpec, ...] = ()
+    timing: Timing = Timing()
+    noise: float = float("nan")
 
     @property
     def vector(self) -> np.ndarray:
@@ -195,10 +242,27 @@ def fused_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
     return integral + smooth
 
 
-def side_angle(data: MeasuredData, side: str = "measured") -> np.ndarray:
-    """The angle [rad] whose sign selects the half-plane (see module doc)."""
+def side_angle(data: MeasuredData, side: str = "measured", shift: float = 0.0) -> np.ndarray:
+    """The angle [rad] whose sign selects the half-plane of each step (see module doc).
+
+    Entry k picks the regime of the step from sample k to k+1. With
+    ``measured`` it is the fused angle at sample ``k + shift`` (linear
+    interpolation). Eq. 6 takes the angle at the start of the step
+    (``shift = 0``), but a real axis crosses angle 0 between samples and what
+    its gyro sample means decides which time is right: a point-sampled rate
+    is the rate at the sample, so the regime holding for most of the step is
+    the one at mid-step (``shift = 0.5``); a rate averaged over the sample
+    period describes the half sample before it (``shift = 0``). A wrong
+    choice makes every crossing half a sample early or late, an error of the
+    size of the friction change that then decays with the pole (20-30 noise
+    sigmas on a 10 ms axis). `identify` picks the shift from the data.
+    """
     if side == "measured":
-        return fused_angle(data)
+        y = fused_angle(data)
+        if shift == 0.0:
+            return y
+        k = np.arange(y.size, dtype=float)
+        return np.interp(k + shift, k, y)
     if side == "raw":
         return data.angle
     if side == "wrap":
@@ -232,21 +296,30 @@ def simulate_data(
     side: str = "measured",
     rest_rate_deg_s: float = 0.1,
     effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
 ):
     """Eq. 6 driven by the run's command and measured angle; `AxisResponse`.
 
     `effects` (a parameter file's ``effects:``) are held fixed; they are built
-    afresh for every simulation because they carry state.
+    afresh for every simulation because they carry state. With
+    ``timing.gyro_average`` the returned rate is what a gyro averaging over
+    each sample period reads (`Timing`).
     """
-    return simulate(
+    resp = simulate(
         rate,
         d.u,
         d.dt,
         omega0=_omega0(d, rest_rate_deg_s * DEG),
         angle0=float(d.angle[0]),
-        angle_measured=side_angle(d, side),
+        angle_measured=side_angle(d, side, timing.side_shift),
         effects=[make_effect(e, d.dt) for e in effects],
     )
+    if not timing.gyro_average:
+        return resp
+    w = resp.omega
+    avg = w.copy()
+    avg[..., 1:] = 0.5 * (w[..., 1:] + w[..., :-1])
+    return replace(resp, omega=avg)
 
 
 def residuals(
@@ -255,16 +328,47 @@ def residuals(
     side: str = "measured",
     rest_rate_deg_s: float = 0.1,
     effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
 ) -> np.ndarray:
     """Simulated minus measured rate [rad/s], sample 0 of each set left out.
 
-    Shape (P, M) for batched params (M = total samples), else (M,).
+    Shape (P, M) for batched params (M = total samples), else (M,). All runs
+    are simulated side by side as rows of one batch (shorter runs padded
+    with a zero command after their end, which cannot reach back), so the
+    time loop is as long as the longest run, not the sum.
     """
-    parts = [
-        simulate_data(rate, d, side, rest_rate_deg_s, effects).omega[..., 1:] - d.omega[1:]
-        for d in data
-    ]
-    return np.concatenate(parts, axis=-1)
+    if len(data) == 1:
+        d = data[0]
+        return (
+            simulate_data(rate, d, side, rest_rate_deg_s, effects, timing).omega[..., 1:]
+            - (d.omega[1:])
+        )
+    single = np.ndim(rate.pole) == 1
+    vec = np.atleast_2d(rate.to_vector())
+    n_sets, n_runs = vec.shape[0], len(data)
+    n = max(len(d) for d in data)
+    u = np.zeros((n_runs, n))
+    y = np.zeros((n_runs, n))
+    for i, d in enumerate(data):
+        u[i, : len(d)] = d.u
+        y[i, : len(d)] = side_angle(d, side, timing.side_shift)
+        y[i, len(d) :] = y[i, len(d) - 1]
+    rest = rest_rate_deg_s * DEG
+    w0 = np.array([_omega0(d, rest) for d in data])
+    a0 = np.array([float(d.angle[0]) for d in data])
+    resp = simulate(
+        RateParams.from_vector(np.repeat(vec, n_runs, axis=0)),
+        np.tile(u, (n_sets, 1)),
+        data[0].dt,
+        omega0=np.tile(w0, n_sets),
+        angle0=np.tile(a0, n_sets),
+        angle_measured=np.tile(y, (n_sets, 1)),
+        effects=[make_effect(e, data[0].dt) for e in effects],
+    )
+    omega = resp.omega.reshape(n_sets, n_runs, n)
+    parts = [omega[:, i, 1 : len(d)] - d.omega[1:] for i, d in enumerate(data)]
+    out = np.concatenate(parts, axis=-1)
+    return out[0] if single else out
 
 
 def rmse(
@@ -273,9 +377,10 @@ def rmse(
     side: str = "measured",
     rest_rate_deg_s: float = 0.1,
     effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
 ) -> float | np.ndarray:
     """Eq. 9: RMS rate error over all sets at once [rad/s]."""
-    e = residuals(rate, data, side, rest_rate_deg_s, effects)
+    e = residuals(rate, data, side, rest_rate_deg_s, effects, timing)
     return np.sqrt(np.mean(e**2, axis=-1))
 
 
@@ -292,22 +397,37 @@ def equation_error_estimate(
 ) -> RateParams:
     """One-step-ahead least squares per regime (see module doc, step 3).
 
-    Regimes with fewer than `min_samples` usable samples, or whose fit is
-    not physical (a outside (0, 1), a non-positive level), keep the prior.
-    Known `effects` are driven by the measured angle and rate
-    (`_effect_drive`) and taken out of the regression.
+    For each alpha of a grid spanning four decades of ``alpha*|omega|`` (from
+    a Stribeck part that is a straight line over the measured speeds to one
+    that has decayed after the first sample), Eq. 6 is linear in (a, b·Ke,
+    b·Tc, b·(Ts-Tc)); the fit is solved with the physical bounds (0 <= a < 1,
+    b·Ke >= 0, b·Tc >= 0, Ts >= Tc), so a nearly collinear Stribeck column
+    (small alpha: ``exp(-alpha|w|)`` ~ ``1 - alpha|w|``, a mix of sign(w)
+    and w) cannot push the levels to unphysical values. Regimes with fewer
+    than `min_samples` usable samples keep the prior. Known `effects` are
+    driven by the measured angle and rate (`_effect_drive`) and taken out of
+    the regression. The rest level used to pick moving samples is at least
+    four times the rate noise (`rate_noise`): noisy samples of an axis at rest
+    would otherwise enter as motion.
     """
-    rest = rest_rate_deg_s * DEG
+    from scipy.optimize import lsq_linear
+
+    noise = rate_noise(data)
+    rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
     rows: list[list[np.ndarray]] = [[] for _ in range(4)]
+    speeds = []
     for d in data:
         w0, w1 = d.omega[:-1], d.omega[1:]
         y = side_angle(d, side)[:-1]
         u0, more = _effect_drive(d, y, effects)
         w1 = w1 - more
         moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
-        breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(u0))
+        # A breakaway moves the way the total drive (command and known
+        # effects) pushes: its direction is that of the motion it starts.
+        breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest)
         r_move = regime_index(y, w0)
-        r_break = regime_index(y, u0)
+        r_break = regime_index(y, w1)
+        speeds.append(np.abs(w0[moving]))
         for r in range(4):
             m = moving & (r_move == r)
             b = breakaway & (r_break == r)
@@ -316,7 +436,7 @@ def equation_error_estimate(
                     [
                         np.r_[w0[m], np.zeros(b.sum())],
                         np.r_[u0[m], u0[b]],
-                        np.r_[np.sign(w0[m]), np.sign(u0[b])],
+                        np.r_[np.sign(w0[m]), np.sign(w1[b])],
                         np.r_[np.abs(w0[m]), np.zeros(b.sum())],
                         np.r_[np.zeros(m.sum()), np.ones(b.sum())],
                         np.r_[w1[m], w1[b]],
@@ -324,24 +444,41 @@ def equation_error_estimate(
                 )
             )
     x = prior.to_vector().reshape(4, 5).copy()
+    speed = np.concatenate(speeds) if speeds else np.empty(0)
+    if speed.size == 0:
+        return RateParams.from_vector(x.ravel())
+    typical = float(np.sqrt(np.mean(speed**2)))
+    grid = np.geomspace(1e-2, 1e2, 41) / typical
     for r in range(4):
         table = np.concatenate(rows[r]) if rows[r] else np.empty((0, 6))
         if table.shape[0] < min_samples:
             continue
-        w0, u0, sgn, speed, brk, w1 = table.T
+        w0, u0, sgn, speed_r, brk, w1 = table.T
+        # Columns scaled to unit norm: u is in digits, the rest in rad/s.
         best = None
-        for alpha in prior.alpha[r] * np.geomspace(0.1, 10.0, 41):
-            shape = np.where(brk > 0, 1.0, np.exp(-alpha * speed))
+        for alpha in grid:
+            shape = np.where(brk > 0, 1.0, np.exp(-alpha * speed_r))
             a_mat = np.column_stack([w0, u0, -sgn, -sgn * shape])
-            theta, *_ = np.linalg.lstsq(a_mat, w1, rcond=None)
-            sse = float(np.sum((a_mat @ theta - w1) ** 2))
+            norm = np.linalg.norm(a_mat, axis=0)
+            norm = np.where(norm > 0, norm, 1.0)
+            fit = lsq_linear(
+                a_mat / norm,
+                w1,
+                bounds=(np.zeros(4), np.array([1.0 - 1e-9, np.inf, np.inf, np.inf]) * norm),
+                method="bvls",
+            )
+            sse = float(np.sum(fit.fun**2))
             if best is None or sse < best[0]:
-                best = (sse, theta, alpha)
+                best = (sse, fit.x / norm, alpha)
         _, (a, g, c, s_minus_c), alpha = best
-        s = c + s_minus_c
-        if 0.0 < a < 1.0 and g > 0 and c > 0 and s > 0:
-            x[r] = (a, g, s, c, alpha)
+        a = min(max(a, 1e-6), 1.0 - 1e-9)
+        x[r] = (a, max(g, 1e-12), c + s_minus_c + 1e-12, c + 1e-12, alpha)
     return RateParams.from_vector(x.ravel())
+
+
+def rate_noise(data: Sequence[MeasuredData]) -> float:
+    """White rate-noise standard deviation of the measured runs [rad/s] (`noise_floor_of`)."""
+    return noise_floor_of([d.omega for d in data])
 
 
 def _effect_drive(
@@ -371,19 +508,77 @@ def _effect_drive(
 # ------------------------------------------------------------ search
 
 
-def _bounds(x0: np.ndarray, x_prior: np.ndarray, factor: float) -> tuple[np.ndarray, np.ndarray]:
-    """Search box spanning the start and the prior, widened by `factor`.
+#: Half-widths of the global-search box around the best point, per regime, in
+#: the log-parameters of `_to_z`: 1-a x/÷ 5, b·Ke x/÷ 3, b·Tc x/÷ 5,
+#: b·(Ts-Tc) x/÷ 20, alpha x/÷ 30.
+_Z_SPAN = np.log(np.array([5.0, 3.0, 5.0, 20.0, 30.0]))
 
-    The pole is bounded on 1 - a (the time constant), others on the value.
+
+def _to_z(x: np.ndarray) -> np.ndarray:
+    """Rate-form vectors (..., 5k) -> search variables (..., 5k).
+
+    Per regime ``(log(1-a), log b·Ke, log b·Tc, log b·(Ts-Tc), log alpha)``:
+    positive by construction, Ts >= Tc always, and one relative scale for
+    quantities spanning many decades (the pole's time constant from 1 ms to
+    10 s, levels from 1e-6 to 1 rad/s per sample).
     """
-    lo = np.minimum(x0, x_prior) / factor
-    hi = np.maximum(x0, x_prior) * factor
-    pole = np.arange(x0.size) % 5 == 0
-    slack_lo = np.minimum(1.0 - x0[pole], 1.0 - x_prior[pole])
-    slack_hi = np.maximum(1.0 - x0[pole], 1.0 - x_prior[pole])
-    lo[pole] = 1.0 - np.minimum(slack_hi * factor, 0.999)
-    hi[pole] = 1.0 - slack_lo / factor
-    return lo, hi
+    x = np.asarray(x, dtype=float)
+    r = x.reshape(*x.shape[:-1], -1, 5)
+    a, g, st, c, al = (r[..., i] for i in range(5))
+    tiny = 1e-300
+    gap = np.maximum(st - c, 1e-6 * np.maximum(c, tiny))
+    z = np.stack(
+        [
+            np.log(np.maximum(1.0 - a, 1e-12)),
+            np.log(np.maximum(g, tiny)),
+            np.log(np.maximum(c, tiny)),
+            np.log(np.maximum(gap, tiny)),
+            np.log(np.maximum(al, tiny)),
+        ],
+        axis=-1,
+    )
+    return z.reshape(x.shape)
+
+
+def _from_z(z: np.ndarray) -> np.ndarray:
+    """Inverse of `_to_z`."""
+    z = np.asarray(z, dtype=float)
+    r = z.reshape(*z.shape[:-1], -1, 5)
+    e = np.exp(r)
+    x = np.stack([1.0 - e[..., 0], e[..., 1], e[..., 2] + e[..., 3], e[..., 2], e[..., 4]], axis=-1)
+    return x.reshape(z.shape)
+
+
+def _z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, np.ndarray]:
+    """Limits of the search variables from the data and physics, shapes (n_free,).
+
+    Per regime: the time constant between 0.1 and 1e5 samples; the gain within
+    a factor 1e3 of the start; the levels between 1e-4 and 3 times the peak
+    drive (b·Ke times the largest command: a level below 1e-4 of it changes
+    no response, and a floor keeps the log-variables from sliding to -inf,
+    where their gradient vanishes); alpha*|omega|_rms between 1e-3 and 1e4.
+    """
+    r = np.asarray(x0, float).reshape(-1, 5)
+    drive = r[:, 1] * u_peak
+    lo = np.column_stack(
+        [
+            np.full(len(r), np.log(1e-5)),
+            np.log(r[:, 1] / 1e3),
+            np.log(1e-4 * drive),
+            np.log(1e-4 * drive),
+            np.full(len(r), np.log(1e-3 / speed)),
+        ]
+    )
+    hi = np.column_stack(
+        [
+            np.full(len(r), np.log(1.0 - np.exp(-10.0))),
+            np.log(r[:, 1] * 1e3),
+            np.log(3.0 * drive),
+            np.log(3.0 * drive),
+            np.full(len(r), np.log(1e4 / speed)),
+        ]
+    )
+    return lo.ravel(), hi.ravel()
 
 
 def _confidence(jac: np.ndarray, resid: np.ndarray, breaks: list[int], level: float, floor: float):
@@ -523,21 +718,108 @@ def identify(
         out[:, free] = xf
         return RateParams.from_vector(out)
 
+    timing = Timing()
+
     def batch_cost(xt: np.ndarray) -> np.ndarray:  # DE: xt shape (n_free, S)
         nonlocal evaluations
         evaluations += xt.shape[1]
-        return np.atleast_1d(rmse(full(xt.T), data, s.side, s.rest_rate_deg_s, effects))
+        return np.atleast_1d(rmse(full(xt.T), data, s.side, s.rest_rate_deg_s, effects, timing))
 
     initial_cost = float(batch_cost(x0[:, None])[0])
-    history: list[float] = []
-    x_best = x0
-    status = "equation-error estimate"
-    if s.generations > 0:
-        x_prior = prior_rate.to_vector()[free]
-        lo, hi = _bounds(x0, x_prior, s.search_factor)
+    history: list[float] = [initial_cost]
+    rest = s.rest_rate_deg_s
+    noise = rate_noise(data)
+    target = s.converged_ratio * noise
+    n_free = int(free.sum())
+    u_peak = max(float(np.max(np.abs(d.u))) for d in data)
+    speed = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
+    z_lo, z_hi = _z_limits(x0, u_peak, max(speed, 1e-9))
+
+    def z_cost(zs: np.ndarray) -> np.ndarray:  # zs (S, n_free)
+        return batch_cost(_from_z(np.clip(zs, z_lo, z_hi)).T)
+
+    cache: dict[str, np.ndarray] = {}
+
+    def evaluate(z: np.ndarray) -> None:
+        nonlocal evaluations
+        h = np.full(z.size, 1e-6)
+        pts = np.vstack([z, z + np.diag(h)])
+        evaluations += pts.shape[0]
+        e = residuals(full(_from_z(pts)), data, s.side, rest, effects, timing)
+        cache.update(z=z.copy(), e=e[0], j=((e[1:] - e[0]) / h[:, None]).T)
+        if progress is not None:
+            progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
+
+    def resid(z: np.ndarray) -> np.ndarray:
+        if "z" not in cache or not np.array_equal(cache["z"], z):
+            evaluate(z)
+        return cache["e"]
+
+    def jac(z: np.ndarray) -> np.ndarray:
+        if "z" not in cache or not np.array_equal(cache["z"], z):
+            evaluate(z)
+        return cache["j"]
+
+    def refine(z: np.ndarray) -> tuple[np.ndarray, float, str]:
+        ls = least_squares(
+            resid,
+            np.clip(z, z_lo, z_hi),
+            jac=jac,
+            bounds=(z_lo, z_hi),
+            x_scale="jac",
+            max_nfev=s.refine_evaluations,
+            method="trf",
+        )
+        return ls.x, float(np.sqrt(2 * ls.cost / ls.fun.size)), ls.message.rstrip(".")
+
+    candidates = [("equation-error start", _to_z(x0))]
+    if s.prior_in_search:
+        candidates.append(("prior", _to_z(prior_rate.to_vector()[free])))
+    z_best = candidates[0][1]
+    best_cost = float(z_cost(z_best[None])[0])
+    status_parts = []
+    for label, z in candidates:
+        c = float(z_cost(z[None])[0])
+        if c < best_cost:
+            z_best, best_cost = z, c
+    if s.refine and s.refine_evaluations > 0:
+        z_ls, c_ls, msg = refine(z_best)
+        status_parts.append(f"least squares from the equation-error start ({msg})")
+        if c_ls < best_cost:
+            z_best, best_cost = z_ls, c_ls
+        history.append(best_cost)
+    if s.timing is not None:
+        timing = s.timing
+        cache.clear()
+        best_cost = float(z_cost(z_best[None])[0])
+    elif s.side == "measured":
+        # What a sample means in time (`Timing`): the fit at each candidate,
+        # the best kept, then refined with it.
+        costs = {}
+        for candidate in TIMINGS:
+            timing = candidate
+            costs[candidate] = float(z_cost(z_best[None])[0])
+        timing = min(costs, key=costs.get)
+        if timing != Timing():
+            cache.clear()
+            best_cost = costs[timing]
+            if s.refine and s.refine_evaluations > 0:
+                z_ls, c_ls, msg = refine(z_best)
+                if c_ls < best_cost:
+                    z_best, best_cost = z_ls, c_ls
+            history.append(best_cost)
+        status_parts.append(timing.describe())
+    if s.generations > 0 and best_cost > target:
+        # Not at the noise: a global search in a box around the best point
+        # (spans of the log-parameters below), then least squares again.
+        span = np.tile(_Z_SPAN, n_free // 5)
+        lo = np.maximum(z_best - span, z_lo)
+        hi = np.minimum(z_best + span, z_hi)
         rng = np.random.default_rng(s.seed)
-        init = lo + (hi - lo) * rng.random((s.population, x0.size))
-        init[0], init[1] = x0, x_prior
+        init = lo + (hi - lo) * rng.random((s.population, n_free))
+        init[0] = np.clip(z_best, lo, hi)
+        for i, (_, z) in enumerate(candidates[: s.population - 1]):
+            init[i + 1] = np.clip(z, lo, hi)
 
         def on_generation(intermediate_result):
             history.append(float(intermediate_result.fun))
@@ -545,7 +827,7 @@ def identify(
                 progress("search", len(history), history[-1])
 
         de = differential_evolution(
-            batch_cost,
+            lambda zt: z_cost(zt.T),
             list(zip(lo, hi)),
             maxiter=s.generations,
             init=init,
@@ -556,61 +838,32 @@ def identify(
             tol=0.0,
             callback=on_generation,
         )
-        x_best = de.x
-        status = f"differential evolution, {len(history)} generations"
-    rest = s.rest_rate_deg_s
+        status_parts.append(f"differential evolution ({s.generations} generations)")
+        z_de, c_de = de.x, float(de.fun)
+        if s.refine and s.refine_evaluations > 0:
+            z_de, c_de, msg = refine(z_de)
+            status_parts.append(f"least squares ({msg})")
+        if c_de < best_cost:
+            z_best, best_cost = z_de, c_de
+        history.append(best_cost)
+    status = "; ".join(status_parts) or "equation-error estimate"
+    x_best = _from_z(np.clip(z_best, z_lo, z_hi)[None])[0]
 
-    # The batch costs about as much per time step for 21 sets as for one, so
-    # each residual evaluation also simulates the finite-difference points and
-    # caches the Jacobian; least_squares asks for it at the same x next.
-    cache: dict[str, np.ndarray] = {}
-
-    def evaluate(xf: np.ndarray) -> None:
-        nonlocal evaluations
+    def _x_jacobian(xf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         h = 1e-6 * np.maximum(np.abs(xf), 1e-9)
         pts = np.vstack([xf, xf + np.diag(h)])
-        evaluations += pts.shape[0]
-        e = residuals(full(pts), data, s.side, rest, effects)
-        cache.update(x=xf.copy(), e=e[0], j=((e[1:] - e[0]) / h[:, None]).T)
-        if progress is not None:
-            progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
+        e = residuals(full(pts), data, s.side, rest, effects, timing)
+        return e[0], ((e[1:] - e[0]) / h[:, None]).T
 
-    def resid(xf: np.ndarray) -> np.ndarray:
-        evaluate(xf)
-        return cache["e"]
-
-    def jac(xf: np.ndarray) -> np.ndarray:
-        if "x" not in cache or not np.array_equal(cache["x"], xf):
-            evaluate(xf)
-        return cache["j"]
-
-    lb = np.where(np.arange(x0.size) % 5 == 0, 1e-6, 1e-12)
-    ub = np.where(np.arange(x0.size) % 5 == 0, 1 - 1e-9, np.inf)
-    x_best = np.clip(x_best, lb * (1 + 1e-9), ub - 1e-12)
-    if s.refine and s.refine_evaluations > 0:
-        ls = least_squares(
-            resid,
-            x_best,
-            jac=jac,
-            bounds=(lb, ub),
-            x_scale="jac",
-            max_nfev=s.refine_evaluations,
-            method="trf",
-        )
-        if ls.cost * 2 <= float(np.sum(resid(x_best) ** 2)):
-            x_best = ls.x
-        history.append(float(np.sqrt(2 * ls.cost / ls.fun.size)))
-        status += f"; least-squares refinement ({ls.nfev} evaluations, {ls.message.rstrip('.')})"
     b = np.array([r.b for r in prior.regimes])
     x_best, moved = _robust_to_storage(
-        x_best, lambda xs: rmse(full(xs), data, s.side, rest, effects), free, b
+        x_best, lambda xs: rmse(full(xs), data, s.side, rest, effects, timing), free, b
     )
     if moved:
         status += (
             "; moved off a stick/slip threshold so that the stored 6-digit values reproduce the fit"
         )
-    evaluate(x_best)
-    e, j = cache["e"], cache["j"]
+    e, j = _x_jacobian(x_best)
     breaks = list(np.cumsum([0] + [len(d) - 1 for d in data]))
     scale = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
     ci_f, ci_floor_f, rho = _confidence(j, e, breaks, s.confidence, _REFERENCE_NOISE * scale)
@@ -621,7 +874,7 @@ def identify(
     sensitive = np.linalg.norm(j, axis=0) > 0
     ident[free] = sensitive & (ci_floor_f < _MAX_RELATIVE_CI * np.abs(x_best))
     ci[free] = np.where(ident[free], ci_f, np.nan)
-    rmse_train = {d.name: float(rmse(rate, [d], s.side, rest, effects)) for d in data}
+    rmse_train = {d.name: float(rmse(rate, [d], s.side, rest, effects, timing)) for d in data}
     return IdentificationResult(
         rate=rate,
         ci95=ci,
@@ -638,6 +891,8 @@ def identify(
         status=status,
         settings=s,
         effects=effects,
+        timing=timing,
+        noise=noise,
     )
 
 

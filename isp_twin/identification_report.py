@@ -22,8 +22,9 @@ from isp_twin.identification import (
 from isp_twin.measured import MeasuredData
 from isp_twin.parameters import PAPER_FIELDS, REGIMES, AxisParams
 from isp_twin.units import DEG
+from isp_twin.verdict import FitVerdict, fit_verdict, noise_floor_of
 
-__all__ = ["rmse_table", "result_json", "write_report", "PAPER_TO_RATE"]
+__all__ = ["rmse_table", "result_json", "write_report", "PAPER_TO_RATE", "identification_verdict"]
 
 #: Which rate-form quantity determines each paper parameter (b: none, fixed).
 PAPER_TO_RATE: dict[str, str | None] = {
@@ -40,7 +41,10 @@ def rmse_table(result: IdentificationResult, data: Sequence[MeasuredData]) -> di
     """RMS rate error per set [deg/s] (Table 3)."""
     s = result.settings
     return {
-        d.name: float(rmse(result.rate, [d], s.side, s.rest_rate_deg_s, result.effects)) / DEG
+        d.name: float(
+            rmse(result.rate, [d], s.side, s.rest_rate_deg_s, result.effects, result.timing)
+        )
+        / DEG
         for d in data
     }
 
@@ -52,13 +56,37 @@ def _identifiable(result: IdentificationResult, regime: int, field: str) -> bool
     return bool(result.identifiable[regime * 5 + RATE_FIELDS.index(rate_field)])
 
 
+#: What to try when an identification is not at the noise.
+ADVICE = (
+    "The Eq. 6 model has not converged on these data, or the axis has an effect Eq. 6 "
+    "lacks. Try: 'isp-twin diagnose' with the written parameter file to look for a missing "
+    "effect; more --generations or another --seed; runs that stay off the hard stops and "
+    "visit each regime; --side for a freely spinning axis."
+)
+
+
+def identification_verdict(
+    result: IdentificationResult, train: Sequence[MeasuredData], validation: Sequence[MeasuredData]
+) -> FitVerdict:
+    """Training and validation RMS errors against each set's noise floor."""
+    rmse_all = dict(result.rmse_train)
+    rmse_all.update({k: v * DEG for k, v in rmse_table(result, validation).items()})
+    floors = {d.name: noise_floor_of([d.omega]) for d in list(train) + list(validation)}
+    return fit_verdict(rmse_all, floors, [d.name for d in validation], ADVICE)
+
+
 def result_json(
     result: IdentificationResult,
     axis: str,
     params: AxisParams,
     validation: Sequence[MeasuredData] = (),
+    train: Sequence[MeasuredData] = (),
 ) -> dict:
-    """The ``--json`` content: parameters, ci95, identifiable, rmse_train, rmse_validation."""
+    """The ``--json`` content: verdict, parameters, ci95, identifiable, RMS errors.
+
+    Error figures are in deg/s, with the unit in the key or in ``units``;
+    undefined numbers are null (JSON has no NaN).
+    """
 
     def num(x: float) -> float | None:
         return float(x) if math.isfinite(x) else None
@@ -70,10 +98,15 @@ def result_json(
         ci95[name] = {f: (num(getattr(ci, f)) if ci is not None else None) for f in PAPER_FIELDS}
         identifiable[name] = {f: _identifiable(result, r, f) for f in PAPER_FIELDS}
     labels = [f"{r}.{f}" for r in REGIMES for f in RATE_FIELDS]
+    verdict = identification_verdict(result, train, validation) if train else None
     return {
         "axis": axis,
+        "converged": verdict.converged if verdict else None,
+        "rmse_over_noise_floor": num(verdict.worst_ratio) if verdict else None,
+        "verdict": verdict.to_json() if verdict else None,
         "units": {
             "rmse": "deg/s",
+            "noise_floor": "deg/s (white rate-noise standard deviation of the data)",
             "parameters": "paper form (see parameter file units)",
             "rate_form": "SI: pole 1, gain rad/s per command unit per sample, "
             "static/coulomb rad/s per sample, alpha s/rad",
@@ -91,11 +124,16 @@ def result_json(
         "rmse_train": {k: v / DEG for k, v in result.rmse_train.items()},
         "rmse_validation": rmse_table(result, validation),
         "cost_deg_s": result.cost / DEG,
+        "noise_floor_deg_s": num(result.noise / DEG),
         "status": result.status,
         "evaluations": result.evaluations,
         "wall_time_s": result.wall_time_s,
-        "residual_lag1_correlation": result.rho,
+        "residual_lag1_correlation": num(result.rho),
         "effects_held": [{"name": e.name, "parameters": dict(e.params)} for e in result.effects],
+        "timing": {
+            "gyro_average": result.timing.gyro_average,
+            "side_shift_samples": result.timing.side_shift,
+        },
     }
 
 
@@ -153,7 +191,9 @@ def _plot(result: IdentificationResult, d: MeasuredData, path: Path, title: str)
     import matplotlib.pyplot as plt
 
     s = result.settings
-    model = simulate_data(result.rate, d, s.side, s.rest_rate_deg_s, result.effects).omega
+    model = simulate_data(
+        result.rate, d, s.side, s.rest_rate_deg_s, result.effects, result.timing
+    ).omega
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 5.5))
     ax1.plot(d.t, d.omega / DEG, lw=0.8, label="measured")
     ax1.plot(d.t, model / DEG, lw=0.8, ls="--", label="model (Eq. 6)")
@@ -181,14 +221,20 @@ def write_report(
     """Write the Markdown report and its PNG figures (beside it); return its path."""
     path = Path(path)
     stem = path.with_suffix("")
+    verdict = identification_verdict(result, train, validation)
     lines = [
         f"# Identification report: {axis}",
+        "",
+        "## Verdict",
+        "",
+        *verdict.lines(),
         "",
         f"Identified from {len(train)} set(s): {', '.join(d.name for d in train)}.",
         f"Parameter file: `{parameters_path}`." if parameters_path else "",
         f"Search: {result.status}; {result.evaluations} simulated parameter sets, "
         f"{result.wall_time_s:.1f} s. Eq. 9 cost {result.cost / DEG:.4g} deg/s "
         f"(equation-error start {result.initial_cost / DEG:.4g} deg/s).",
+        f"Read-out timing: {result.timing.describe()}.",
         f"Half-plane from: `{result.settings.side}` angle. Residual lag-1 correlation "
         f"{result.rho:.3f} (intervals inflated by (1+rho)/(1-rho) when positive).",
         "Extra effects of the prior, held fixed in the fit and in every simulation here: "

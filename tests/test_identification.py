@@ -37,7 +37,7 @@ from isp_twin.units import DEG
 SHORT = tuple(
     dataclasses.replace(PAPER_SET[i], freq_hz=1.0, n_samples=1000, name=f"short{i}") for i in (0, 3)
 )
-FAST = Settings(generations=0, refine_evaluations=60)
+FAST = Settings(generations=0, refine_evaluations=200)
 
 
 def _data(params, noise, seed=0, excitations=SHORT):

@@ -11,7 +11,7 @@ from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.data_options import add_data_options, mapping_from_args
 from isp_twin.errors import DataError
 from isp_twin.identification import SIDES, Settings, identify, to_axis_params
-from isp_twin.identification_report import result_json, write_report
+from isp_twin.identification_report import identification_verdict, result_json, write_report
 from isp_twin.measured import load_measured
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
@@ -48,6 +48,12 @@ def add_parser(sub) -> None:
         default="measured",
         choices=SIDES,
         help="half-plane source: measured (angle fused with rate), raw, wrap, right, left",
+    )
+    p.add_argument(
+        "--prior-in-search",
+        action="store_true",
+        help="also start the search from the prior's values (by default the prior only "
+        "supplies b, the regimes the data do not visit and the effects held fixed)",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--generations", type=int, default=Settings.generations)
@@ -95,6 +101,7 @@ def execute(args) -> int:
         min_regime_samples=args.min_regime_samples,
         rest_rate_deg_s=args.rest_rate,
         side=args.side,
+        prior_in_search=args.prior_in_search,
     )
     show = not args.quiet and sys.stderr.isatty()
 
@@ -130,13 +137,14 @@ def execute(args) -> int:
     if not args.no_report:
         report = args.report or args.out.with_name(f"{args.out.stem}_report.md")
         write_report(report, result, args.axis, axis_params, train, validation, args.out)
-    summary = result_json(result, args.axis, axis_params, validation)
+    summary = result_json(result, args.axis, axis_params, validation, train)
+    verdict = identification_verdict(result, train, validation)
     if args.json is not None:
         write_text_atomic(args.json, json.dumps(summary, indent=2) + "\n")
     if not args.quiet:
         visited = [r for r, ok in zip(summary["regime_identified"], result.regime_identified) if ok]
         print(f"identified {args.axis} regimes {', '.join(visited) or 'none'} -> {args.out}")
         print(f"RMS rate error (Eq. 9): {result.cost / DEG:.4g} deg/s over {len(train)} set(s)")
-        for name, v in summary["rmse_validation"].items():
-            print(f"  validation {name}: {v:.4g} deg/s")
+        for line in verdict.lines():
+            print(line)
     return 0

@@ -1,0 +1,118 @@
+"""The fit verdict: a model's error over the data's noise floor, said plainly.
+
+Every `identify` and `diagnose` result carries one. The noise floor is the
+white rate-noise standard deviation of the data (`noise_floor_of`): the RMS
+error a perfect model would leave. A fit whose RMS error is more than
+`CONVERGED_RATIO` times the floor on any set (training or held out) has not
+converged, or the model lacks an effect; the verdict says so and what to try,
+in the text and in the JSON (``converged: false``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from isp_twin.units import DEG
+
+__all__ = ["CONVERGED_RATIO", "FitVerdict", "fit_verdict", "noise_floor_of"]
+
+#: Largest RMS error, in noise floors, of a fit called converged.
+CONVERGED_RATIO = 1.5
+
+
+def noise_floor_of(rates: Sequence[np.ndarray]) -> float:
+    """White-noise standard deviation [same unit as the rates] of measured rates.
+
+    ``1.4826*MAD(second difference)/sqrt(6)`` pooled over the runs: for white
+    noise of deviation s the second difference has variance 6 s^2, while a
+    rate filtered by the axis's own dynamics contributes little except at the
+    few breakaways, which the median ignores.
+    """
+    diffs = [np.diff(np.asarray(r, float), 2) for r in rates if len(r) > 3]
+    if not diffs:
+        return float("nan")
+    d = np.concatenate(diffs)
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0))
+
+
+@dataclass(frozen=True)
+class FitVerdict:
+    """A fit's errors over the noise floor.
+
+    Attributes:
+        rmse: RMS rate error per set [rad/s], training sets first.
+        noise_floor: per set, the white-noise standard deviation [rad/s].
+        held_out: names of the held-out sets among `rmse`.
+        converged: every set within `CONVERGED_RATIO` noise floors.
+        advice: what to try when not converged ("" when converged).
+    """
+
+    rmse: Mapping[str, float]
+    noise_floor: Mapping[str, float]
+    held_out: tuple[str, ...]
+    converged: bool
+    advice: str
+
+    def ratio(self, name: str) -> float:
+        floor = self.noise_floor[name]
+        return self.rmse[name] / floor if floor > 0 else math.inf
+
+    @property
+    def worst_ratio(self) -> float:
+        return max((self.ratio(n) for n in self.rmse), default=math.nan)
+
+    def lines(self) -> list[str]:
+        """The verdict as text, one line per set and a conclusion."""
+        out = []
+        for name in self.rmse:
+            role = "held out" if name in self.held_out else "training"
+            out.append(
+                f"  {name} ({role}): RMS error {self.rmse[name] / DEG:.4g} deg/s = "
+                f"{self.ratio(name):.2f} x the noise floor {self.noise_floor[name] / DEG:.3g} deg/s"
+            )
+        if self.converged:
+            out.append(f"converged: every set within {CONVERGED_RATIO:g} x its noise floor")
+        else:
+            out.append(
+                f"NOT CONVERGED: error {self.worst_ratio:.2f} x the noise floor "
+                f"(limit {CONVERGED_RATIO:g}). {self.advice}"
+            )
+        return out
+
+    def to_json(self) -> dict:
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {
+            "converged": bool(self.converged),
+            "rmse_over_noise_floor": num(self.worst_ratio),
+            "converged_limit": CONVERGED_RATIO,
+            "per_set": {
+                n: {
+                    "role": "held_out" if n in self.held_out else "training",
+                    "rmse_deg_s": num(self.rmse[n] / DEG),
+                    "noise_floor_deg_s": num(self.noise_floor[n] / DEG),
+                    "rmse_over_noise_floor": num(self.ratio(n)),
+                }
+                for n in self.rmse
+            },
+            "advice": self.advice,
+        }
+
+
+def fit_verdict(
+    rmse: Mapping[str, float],
+    noise_floor: Mapping[str, float],
+    held_out: Sequence[str] = (),
+    advice: str = "",
+) -> FitVerdict:
+    """Judge per-set RMS errors [rad/s] against per-set noise floors [rad/s]."""
+    ratios = [rmse[n] / noise_floor[n] if noise_floor[n] > 0 else math.inf for n in rmse]
+    converged = bool(ratios) and all(r <= CONVERGED_RATIO for r in ratios)
+    return FitVerdict(
+        dict(rmse), dict(noise_floor), tuple(held_out), converged, "" if converged else advice
+    )
