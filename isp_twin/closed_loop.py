@@ -253,13 +253,7 @@ class ClosedLoop:
         gimbal_cols = slice(table_cols.stop, layout.joint_columns.stop)
         row = [0.0] * layout.width
         for k in range(self._k, stop):
-            st = twin.state()
-            angle = st.angle.tolist()
-            rate = st.rate.tolist()
-            w1 = st.gyro.tolist()
-            wc = st.carrier_rate.tolist()
-            friction = st.friction.tolist()
-            regime = st.regime.tolist()
+            angle, rate, w1, wc, friction, regime, table_angle = twin.sense()
             meas = [res.read(angle[i]) for i, res in enumerate(resolvers)]
             for i in range(2):
                 if not -DIVERGED_RATE < w1[i] < DIVERGED_RATE:
@@ -303,7 +297,7 @@ class ClosedLoop:
                 uo = followers[j].step(err, meas[2 + j][1])
                 command[2 + j] = uo
                 row[outer[j]] = (true_err, uo)  # OUTER_SIGNALS order
-            row[table_cols] = st.table_angle.tolist()
+            row[table_cols] = table_angle
             row[gimbal_cols] = angle
             buf[k] = row
             self._k = k + 1

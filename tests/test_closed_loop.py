@@ -204,3 +204,17 @@ def test_stepping_a_closed_loop_by_hand_gives_the_same_run_and_reset_repeats_it(
         assert np.array_equal(again.signals[key], whole.signals[key])
     with pytest.raises(SimulationDiverged, match="ends at sample"):
         loop.step()
+
+
+def test_the_twins_fast_sense_reads_the_same_numbers_as_its_state():
+    from isp_twin.closed_loop import ClosedLoop
+
+    loop = ClosedLoop(parse_scenario({**SHORT, "duration_s": 2.1}, "short.yaml"))
+    for _ in range(700):  # moving, with the turntable swinging
+        loop.step()
+    st = loop.twin.state()
+    angle, rate, gyro, carrier, friction, regime, table = loop.twin.sense()
+    assert angle == st.angle.tolist() and rate == st.rate.tolist()
+    assert gyro == st.gyro.tolist() and carrier == st.carrier_rate.tolist()
+    assert friction == st.friction.tolist() and regime == st.regime.tolist()
+    assert table == st.table_angle.tolist()
