@@ -555,13 +555,17 @@ def scenario_to_raw(scenario: Scenario) -> dict:
     return raw(scenario)
 
 
-def check_scenario_value(key_path: str, value: Any, where: str) -> Any:
+def check_scenario_value(
+    key_path: str, value: Any, where: str, key_where: str | None = None
+) -> Any:
     """Check one value against the scenario schema at a dotted key path.
 
     Args:
         key_path: e.g. ``controller.inner_az.nfc.gamma``.
         value: the value to check (as a YAML file would give it).
         where: how the error names the place (e.g. ``sweep.yaml: grid.<key>[2]``).
+        key_where: how an error in the key path itself names the place
+            (default: `where`).
 
     Returns:
         The value converted as the loader would.
@@ -570,6 +574,7 @@ def check_scenario_value(key_path: str, value: Any, where: str) -> Any:
         ScenarioError: unknown key (with the nearest valid key), a key that
             holds a section rather than a value, wrong type, out of range.
     """
+    kw = key_where or where
     cls = Scenario
     parts = key_path.split(".")
     for i, part in enumerate(parts):
@@ -578,17 +583,17 @@ def check_scenario_value(key_path: str, value: Any, where: str) -> Any:
             done = ".".join(parts[:i])
             section = f" in '{done}'" if done else ""
             raise ScenarioError(
-                f"{where}: unknown scenario key '{part}'{section}{_nearest_key(part, fields)}; "
+                f"{kw}: unknown scenario key '{part}'{section}{_nearest_key(part, fields)}; "
                 f"allowed: {', '.join(fields)}"
             )
         tp, _ = _unwrap_optional(_hints(cls)[part])
         if i < len(parts) - 1:
             if not dataclasses.is_dataclass(tp):
-                raise ScenarioError(f"{where}: '{'.'.join(parts[: i + 1])}' holds no keys")
+                raise ScenarioError(f"{kw}: '{'.'.join(parts[: i + 1])}' holds no keys")
             cls = tp
         elif dataclasses.is_dataclass(tp):
             raise ScenarioError(
-                f"{where}: '{key_path}' is a section; sweep one of its keys: "
+                f"{kw}: '{key_path}' is a section; sweep one of its keys: "
                 f"{', '.join(f.name for f in _fields(tp))}"
             )
     return _convert(_hints(cls)[parts[-1]], value, fields[parts[-1]].metadata, where)

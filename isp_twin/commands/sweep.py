@@ -68,9 +68,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 class _ProgressPrinter:
     """A bar with ETA on a terminal, plain lines (about every 5 %) otherwise."""
 
-    def __init__(self, stream=sys.stderr):
-        self.stream = stream
-        self.tty = stream.isatty()
+    def __init__(self, stream=None):
+        self.stream = stream if stream is not None else sys.stderr
+        self.tty = self.stream.isatty()
         self.next_line = 0.0
 
     def __call__(self, p) -> None:

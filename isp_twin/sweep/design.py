@@ -250,11 +250,11 @@ def _values(spec: Any, knob: str, where: str) -> list:
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise _err(f"{where}.num", f"empty range: num must be an integer >= 1, got {num!r}")
         values = [lo] if num == 1 else np.linspace(lo, hi, num).tolist()
-        return [check_scenario_value(knob, v, f"{where}[{i}]") for i, v in enumerate(values)]
+        return [check_scenario_value(knob, v, f"{where}[{i}]", where) for i, v in enumerate(values)]
     if isinstance(spec, list):
         if not spec:
             raise _err(where, "empty list of values")
-        return [check_scenario_value(knob, v, f"{where}[{i}]") for i, v in enumerate(spec)]
+        return [check_scenario_value(knob, v, f"{where}[{i}]", where) for i, v in enumerate(spec)]
     raise _err(where, f"expected a list of values or a range {{from, to, num}}, got {spec!r}")
 
 
@@ -309,8 +309,8 @@ def _random(spec: Any, where: str) -> tuple[int, int, dict[str, tuple[float, flo
         _mapping(r, w, ("low", "high"))
         if "low" not in r or "high" not in r:
             raise _err(w, "a random knob needs low and high")
-        lo = check_scenario_value(str(knob), r["low"], f"{w}.low")
-        hi = check_scenario_value(str(knob), r["high"], f"{w}.high")
+        lo = check_scenario_value(str(knob), r["low"], f"{w}.low", w)
+        hi = check_scenario_value(str(knob), r["high"], f"{w}.high", w)
         if isinstance(lo, bool) or not isinstance(lo, (int, float)):
             raise _err(w, "only numeric knobs can be drawn at random")
         if not lo < hi:

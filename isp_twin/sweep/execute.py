@@ -31,6 +31,7 @@ __all__ = [
     "worker_count",
     "run_one",
     "Progress",
+    "local_client",
     "execute",
 ]
 
@@ -139,19 +140,24 @@ class Progress:
         return self.elapsed_s / self.done * (self.total - self.done) if self.done else math.inf
 
 
-def _local_client(n_workers: int):
+def local_client(n_workers: int):
     """A LocalCluster of `n_workers` single-threaded processes and its client."""
     from distributed import Client, LocalCluster
 
-    cluster = LocalCluster(
-        n_workers=n_workers,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-        # numpy's BLAS must not start threads of its own in each worker
-        env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"},
-    )
+    try:
+        cluster = LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=":0",  # no fixed port: several sweeps may run at once
+            silence_logs=logging.ERROR,
+            # numpy's BLAS must not start threads of its own in each worker
+            env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"},
+        )
+    except (OSError, RuntimeError, TimeoutError) as exc:
+        raise IspTwinError(
+            f"cannot start a local Dask cluster of {n_workers} workers: {exc}"
+        ) from None
     return Client(cluster), cluster
 
 
@@ -212,7 +218,7 @@ def execute(
                 raise IspTwinError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
             own = (client, None)
         else:
-            client, cluster = _local_client(worker_count(workers, len(pending)))
+            client, cluster = local_client(worker_count(workers, len(pending)))
             own = (client, cluster)
     try:
         _run_on_dask(client, pending, store, tracker, name)
