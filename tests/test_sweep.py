@@ -391,3 +391,21 @@ def test_campaign_with_absurd_jobs_starts_no_more_workers_than_runs_and_cores(mo
     assert main(["campaign", "tracking_0_5Hz", "-n", "1", "--jobs", "100000"]) == 0
     assert started and started[0] <= min(2, len(os.sched_getaffinity(0)))
     assert "NFC reduces the average J" in capsys.readouterr().out
+
+
+def test_the_shipped_example_sweep_is_valid():
+    from isp_twin.resources import resource_root
+
+    sweep = load_sweep(resource_root() / "scenarios" / "sweeps" / "nfc_gamma_kp.yaml")
+    assert len(sweep.runs) == 3 * 3 * 3 * 5
+    assert sweep.knob_names[-1] == "draw"
+
+
+def test_a_sweep_runs_on_an_existing_scheduler_by_its_address(files, cluster):
+    sweep = load_sweep(files({"seeds": [1, 2]}))
+    address = cluster.scheduler.address
+    with ResultStore(":memory:") as store:
+        assert execute(sweep.runs, store, scheduler=address) == (2, 0)
+        workers = {o.worker for o in store.outcomes([r.key for r in sweep.runs]).values()}
+    assert workers and all(w.split(":")[1] != str(os.getpid()) for w in workers)
+    assert cluster.scheduler_info()["workers"]  # our client closed, the cluster lives on
