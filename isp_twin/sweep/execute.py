@@ -18,7 +18,7 @@ import logging
 import math
 import os
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -142,18 +142,23 @@ class Progress:
 
 def local_client(n_workers: int):
     """A LocalCluster of `n_workers` single-threaded processes and its client."""
+    import dask
     from distributed import Client, LocalCluster
 
+    # The scheduler lives in this process: short logs keep its memory flat
+    # over many tasks (Dask's defaults keep 10 000 entries per log).
+    logs = {"distributed.admin.log-length": 1000, "distributed.admin.low-level-log-length": 200}
     try:
-        cluster = LocalCluster(
-            n_workers=n_workers,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",  # no fixed port: several sweeps may run at once
-            silence_logs=logging.ERROR,
-            # numpy's BLAS must not start threads of its own in each worker
-            env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"},
-        )
+        with dask.config.set(logs):
+            cluster = LocalCluster(
+                n_workers=n_workers,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=":0",  # no fixed port: several sweeps may run at once
+                silence_logs=logging.ERROR,
+                # numpy's BLAS must not start threads of its own in each worker
+                env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"},
+            )
     except (OSError, RuntimeError, TimeoutError) as exc:
         raise IspTwinError(
             f"cannot start a local Dask cluster of {n_workers} workers: {exc}"
@@ -286,8 +291,3 @@ def _run_on_dask(
         for f in list(stream.futures):
             f.cancel()
         raise
-
-
-def outcomes_by_key(store: ResultStore, runs: Sequence[RunSpec]) -> Mapping[str, RunOutcome]:
-    """The stored outcomes of `runs`, by key."""
-    return store.outcomes([r.key for r in runs])
