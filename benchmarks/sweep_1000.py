@@ -15,6 +15,7 @@ just before, and prints the sweep's wall time over the ideal
 (one run x runs / workers): the sweep machinery's own overhead.
 
     python benchmarks/sweep_1000.py [--runs 1000] [--workers N]
+    python benchmarks/sweep_1000.py --runs 6000 --duration 0.05   # memory over many runs
 """
 
 from __future__ import annotations
@@ -37,12 +38,25 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--scenario", default="turbulence_1_6Hz")
+    ap.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="shorten each run to this many seconds (metrics over the whole run): many "
+        "cheap runs show whether the parent's memory stays flat",
+    )
     args = ap.parse_args()
     # The reference: one run in this process, now (the machine may be shared).
     from isp_twin.closed_loop import run_scenario
     from isp_twin.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
+    if args.duration is not None:
+        from dataclasses import replace
+
+        from isp_twin.scenario import Metrics
+
+        scenario = replace(scenario, duration_s=args.duration, metrics=Metrics(skip_s=0.0))
     start = time.perf_counter()
     run_scenario(scenario)
     one = time.perf_counter() - start
