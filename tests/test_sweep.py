@@ -361,7 +361,11 @@ def test_the_sweep_command_prints_the_best_setting_writes_plots_and_json(files, 
     store, out, plots = tmp_path / "s.sqlite", tmp_path / "s.json", tmp_path / "plots"
     args = ["sweep", str(path), "--store", str(store), "--json", str(out), "--plots", str(plots)]
     assert main(args + ["--in-process"]) == 0
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.out
+    # not a terminal: plain progress lines with an ETA, the last one complete
+    progress = captured.err.splitlines()
+    assert progress[-1].startswith("sweep: 12/12 runs done") and "ETA" in progress[0]
     doc = json.loads(out.read_text())
     assert doc["runs_designed"] == doc["runs_stored"] == 12
     # the best point is the lowest mean J over its seeds, recomputed from the store here
