@@ -121,6 +121,10 @@ BAD = [
         {"cases": [{"label": "x", "controller.inner_az": 1}]},
         r"cases\[0\]\.controller\.inner_az: 'controller\.inner_az' is a section",
     ),
+    (
+        {"grid": {"gyro.noise_deg_s": [0.01]}, "cases": [{"gyro.noise_deg_s": 0.02}]},
+        r"sw\.yaml: 'gyro\.noise_deg_s' is set by both grid and cases",
+    ),
     # valid knobs alone, a run the scenario loader refuses (the metrics window is empty)
     ({"grid": {"duration_s": [1.5]}}, r"the run with duration_s=1\.5: .*leaves nothing"),
 ]

@@ -446,11 +446,15 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
             raise _err(f"{where}uncertainty", f"{params_path} gives no ci95 to draw from")
         draws = list(range(n_draws))
 
-    overlap = set(grid) & {k for c in cases for k in c} | set(grid) & {
-        k for r in randoms for k in r
-    }
-    if overlap:
-        raise _err(f"{where}grid", f"'{sorted(overlap)[0]}' is also set by cases or random")
+    case_keys = {k for c in cases for k in c if k != "label"}
+    random_keys = set(randoms[0])
+    for a, b, name in (
+        (set(grid), case_keys, "grid and cases"),
+        (set(grid), random_keys, "grid and random"),
+        (case_keys, random_keys, "cases and random"),
+    ):
+        if a & b:
+            raise _err(f"{source}", f"'{sorted(a & b)[0]}' is set by both {name}")
     total = len(cases) * math.prod(len(v) for v in grid.values()) * len(randoms)
     total *= len(draws) * len(seeds)
     if total > MAX_RUNS:
