@@ -424,3 +424,20 @@ def test_a_sweep_runs_on_an_existing_scheduler_by_its_address(files, cluster):
         workers = {o.worker for o in store.outcomes([r.key for r in sweep.runs]).values()}
     assert workers and all(w.split(":")[1] != str(os.getpid()) for w in workers)
     assert cluster.scheduler_info()["workers"]  # our client closed, the cluster lives on
+
+
+def test_runs_with_identical_inputs_are_one_run(files):
+    # 40 draws of an integer knob with 3 values must repeat; each setting runs once
+    sweep = load_sweep(
+        files(
+            {
+                "random": {
+                    "count": 40,
+                    "seed": 2,
+                    "knobs": {"gyro.sample_every": {"low": 1, "high": 3}},
+                }
+            }
+        )
+    )
+    assert sorted(r.knobs["gyro.sample_every"] for r in sweep.runs) == [1, 2, 3]
+    assert [r.index for r in sweep.runs] == [0, 1, 2]

@@ -25,7 +25,8 @@ optional except `scenario`::
 
 Knobs are dotted scenario key paths, checked against the scenario schema
 (type, range) with the sweep file's key path in the message. The runs are
-cases x grid x random draws x parameter draws x seeds.
+cases x grid x random draws x parameter draws x seeds; runs whose inputs
+are identical (two random draws of an integer knob that agree) are one run.
 
 Parameter uncertainty: draw d perturbs every parameter that has a ci95 in
 the file by a normal deviate of standard deviation ci95/1.96 (the ci95 is
@@ -464,7 +465,8 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
     digest = _file_digest(params_path)
     knob_names = (["label"] if "cases" in raw else []) + list(grid)
     knob_names += list(randoms[0]) + (["draw"] if draws != [None] else [])
-    runs = []
+    runs: list[RunSpec] = []
+    keys: set[str] = set()
     draw_cache: dict[int, dict] = {}
     for case, values, rdraw, d in itertools.product(
         cases, itertools.product(*grid.values()), randoms, draws
@@ -488,19 +490,13 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
             knobs["draw"] = d
             pdraw = draw_cache.setdefault(d, draw_parameters(params_raw, useed, d))
         for seed in seeds:
-            runs.append(
-                make_run(
-                    len(runs),
-                    scenario_raw,
-                    base.source,
-                    params_path,
-                    seed,
-                    knobs,
-                    axis,
-                    pdraw,
-                    digest,
-                )
+            run = make_run(
+                len(runs), scenario_raw, base.source, params_path, seed, knobs, axis, pdraw, digest
             )
+            # identical inputs (e.g. two random draws of an integer knob) are one run
+            if run.key not in keys:
+                keys.add(run.key)
+                runs.append(run)
     return Sweep(name=name, source=src, axis=axis, knob_names=tuple(knob_names), runs=tuple(runs))
 
 
