@@ -4,18 +4,18 @@ and the paper-vs-twin comparison of Tables 4-6.
 The paper repeats each experiment ten times; here run i uses seed
 ``first_seed + i`` (the gyro noise differs, nothing else), once with NFC off
 (PI gains `pi`) and once with NFC on (gains `pi_nfc`), and the statistics of
-`isp_twin.metrics.campaign_stats` are taken over the runs' J.
+`isp_twin.metrics.campaign_stats` are taken over the runs' J. A campaign is a
+small sweep (seeds x {PI, PI+NFC}) run by `isp_twin.sweep.execute`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
+from pathlib import Path
 
-from isp_twin.closed_loop import run_scenario
-from isp_twin.errors import ScenarioError
+from isp_twin.errors import ScenarioError, SimulationDiverged
 from isp_twin.metrics import CampaignStats, campaign_stats
 from isp_twin.paper import (
     TABLE4_ACTUAL,
@@ -27,12 +27,17 @@ from isp_twin.paper import (
     relative_reduction,
 )
 from isp_twin.parameters import ParameterSet
-from isp_twin.scenario import Scenario, load_scenario
+from isp_twin.scenario import Scenario, load_scenario, scenario_to_raw
+from isp_twin.sweep.design import RunSpec, make_run
+from isp_twin.sweep.execute import execute
+from isp_twin.sweep.store import ResultStore, RunOutcome
 
 __all__ = [
     "VARIANTS",
     "VariantResult",
     "CampaignResult",
+    "campaign_runs",
+    "run_all",
     "run_campaign",
     "TABLE4_SCENARIOS",
     "Comparison",
@@ -112,9 +117,49 @@ def _mean(x: Sequence[float]) -> float:
     return float(sum(x) / len(x))
 
 
-def _one_run(job: tuple[Scenario, ParameterSet | None, int, str]) -> tuple[float, float, float]:
-    scenario, params, seed, axis = job
-    m = run_scenario(scenario, params=params, seed=seed).metrics.get(axis)
+def campaign_runs(
+    scenario: Scenario,
+    seeds: Sequence[int],
+    params: ParameterSet | None = None,
+    axis: str = "inner_az",
+) -> list[RunSpec]:
+    """The campaign as a sweep design: seeds x {PI, PI+NFC}, in `VARIANTS` order."""
+    if params is not None and params.path is None:
+        raise ValueError("a campaign runs on workers: its parameter set must come from a file")
+    params_path = Path(params.path if params is not None else scenario.parameters_path).resolve()
+    runs = []
+    for label, nfc in VARIANTS.items():
+        raw = scenario_to_raw(scenario.with_nfc(nfc))
+        for seed in seeds:
+            runs.append(
+                make_run(len(runs), raw, scenario.source, params_path, seed, {"label": label}, axis)
+            )
+    return runs
+
+
+def run_all(runs: Sequence[RunSpec], jobs: int = 1, client=None) -> dict[str, RunOutcome]:
+    """Run a design without a store file (an in-memory one), by key.
+
+    Args:
+        runs: the design.
+        jobs: 1 runs here; more starts a local Dask cluster of at most that
+            many workers, bounded by the runs and the cores.
+        client: a Dask client to use instead (overrides `jobs`).
+
+    Raises:
+        SimulationDiverged: a run failed (its one-line reason).
+    """
+    with ResultStore(":memory:") as store:
+        execute(runs, store, workers=jobs, in_process=jobs <= 1 and client is None, client=client)
+        outcomes = store.outcomes([r.key for r in runs])
+    for r in runs:
+        if outcomes[r.key].status != "ok":
+            raise SimulationDiverged(outcomes[r.key].error or "a campaign run failed")
+    return outcomes
+
+
+def _j(scenario: Scenario, outcome: RunOutcome, axis: str) -> tuple[float, float, float]:
+    m = outcome.metrics.get(axis)
     if m is None:
         raise ScenarioError(
             f"{scenario.source or scenario.name}: turntable: {axis} sees no carrier motion, "
@@ -131,37 +176,34 @@ def run_campaign(
     axis: str = "inner_az",
     jobs: int = 1,
     on_run: Callable[[str, int, float], None] | None = None,
+    client=None,
 ) -> CampaignResult:
-    """Run `scenario` n_runs times with PI and with PI+NFC.
+    """Run `scenario` n_runs times with PI and with PI+NFC (a sweep of seeds x controllers).
 
     Args:
         scenario: a closed-loop scenario (its own NFC switch is overridden).
         n_runs: runs per controller (paper: 10).
         first_seed: seed of the first run (default: the scenario's).
-        params: parameter set (default: the scenario's file).
+        params: parameter set, loaded from a file (default: the scenario's file).
         axis: inner axis the statistics are taken on.
-        jobs: worker processes (1: in this process).
-        on_run: called with (variant, seed, J) after each run.
+        jobs: worker processes (1: in this process; bounded by runs and cores).
+        on_run: called with (variant, seed, J) after the runs, in design order.
+        client: a Dask client to run on (overrides `jobs`).
     """
     if n_runs < 1:
         raise ValueError(f"a campaign needs n_runs >= 1, got {n_runs}")
     first = scenario.seed if first_seed is None else first_seed
     seeds = tuple(range(first, first + n_runs))
-    work = [
-        (scenario.with_nfc(nfc), params, seed, axis) for nfc in VARIANTS.values() for seed in seeds
-    ]
-    labels = [label for label in VARIANTS for _ in seeds]
-    if jobs > 1:
-        with ProcessPoolExecutor(jobs) as pool:
-            results = list(pool.map(_one_run, work))
-    else:
-        results = [_one_run(w) for w in work]
+    runs = campaign_runs(scenario, seeds, params, axis)
+    outcomes = run_all(runs, jobs, client)
+    results = [_j(scenario, outcomes[r.key], axis) for r in runs]
+    labels = [r.knobs["label"] for r in runs]
     if on_run is not None:
-        for label, w, r in zip(labels, work, results):
-            on_run(label, w[2], r[0])
+        for label, r, res in zip(labels, runs, results):
+            on_run(label, r.seed, res[0])
     variants = {}
     for label in VARIANTS:
-        rows = [r for lab, r in zip(labels, results) if lab == label]
+        rows = [res for lab, res in zip(labels, results) if lab == label]
         variants[label] = VariantResult(
             stats=campaign_stats([r[0] for r in rows]),
             max_abs_error_deg_s=tuple(r[1] for r in rows),
@@ -206,29 +248,32 @@ class Comparison:
     n_runs: int
 
 
-def _table4_job(job: tuple[str, int, float | None]) -> float:
-    name, seed, duration = job
-    scenario = load_scenario(name).with_nfc(False)
-    if duration is not None:
-        scenario = replace(scenario, duration_s=duration)
-    return run_scenario(scenario, seed=seed).metrics["inner_az"]["isolation_percent"]
-
-
 def compare_with_paper(n_runs: int = 10, jobs: int = 1, first_seed: int = 1) -> Comparison:
     """Run the Table 4 grid (PI) and the Table 5 / 6 campaigns on the twin."""
     seeds = list(range(first_seed, first_seed + n_runs))
-    work = [(name, s, None) for name in TABLE4_SCENARIOS.values() for s in seeds]
+    table4_runs = {}
+    for cell, name in TABLE4_SCENARIOS.items():
+        scenario = load_scenario(name)
+        table4_runs[cell] = (scenario, campaign_runs(scenario, seeds)[:n_runs])  # PI only
+    t5_scenario, t6_scenario = load_scenario("tracking_0_5Hz"), load_scenario("turbulence_1_6Hz")
+    client = cluster = None
     if jobs > 1:
-        with ProcessPoolExecutor(jobs) as pool:
-            js = list(pool.map(_table4_job, work))
-    else:
-        js = [_table4_job(w) for w in work]
-    table4 = {
-        cell: campaign_stats(js[i * n_runs : (i + 1) * n_runs])
-        for i, cell in enumerate(TABLE4_SCENARIOS)
-    }
-    t5 = run_campaign(load_scenario("tracking_0_5Hz"), n_runs, first_seed, jobs=jobs)
-    t6 = run_campaign(load_scenario("turbulence_1_6Hz"), n_runs, first_seed, jobs=jobs)
+        from isp_twin.sweep.execute import local_client, worker_count
+
+        client, cluster = local_client(worker_count(jobs, (len(TABLE4_SCENARIOS) + 4) * n_runs))
+    try:
+        everything = [r for _, runs in table4_runs.values() for r in runs]
+        outcomes = run_all(everything, jobs, client)
+        table4 = {
+            cell: campaign_stats([_j(s, outcomes[r.key], "inner_az")[0] for r in runs])
+            for cell, (s, runs) in table4_runs.items()
+        }
+        t5 = run_campaign(t5_scenario, n_runs, first_seed, jobs=jobs, client=client)
+        t6 = run_campaign(t6_scenario, n_runs, first_seed, jobs=jobs, client=client)
+    finally:
+        if client is not None:
+            client.close()
+            cluster.close()
     return Comparison(table4=table4, table5=t5, table6=t6, n_runs=n_runs)
 
 

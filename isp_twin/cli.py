@@ -17,7 +17,7 @@ from isp_twin.errors import IspTwinError
 
 __all__ = ["main", "build_parser"]
 
-SUBCOMMANDS = ("run", "identify", "diagnose", "generate", "campaign", "report")
+SUBCOMMANDS = ("run", "identify", "diagnose", "generate", "campaign", "report", "sweep")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -41,9 +41,10 @@ from isp_twin.metrics import run_metrics
 from isp_twin.parameters import ParameterSet, load_parameters
 from isp_twin.results import RunResult
 from isp_twin.scenario import INNER_AXES, OUTER_AXES, TABLE_AXES, Motion, Scenario
+from isp_twin.signals import CLOSED_LOOP_SIGNALS
 from isp_twin.units import DEG
 
-__all__ = ["DIVERGED_RATE", "table_angles", "build_rate_loop", "run_scenario"]
+__all__ = ["DIVERGED_RATE", "table_angles", "build_rate_loop", "ClosedLoop", "run_scenario"]
 
 #: An inner inertial rate above this is a runaway [rad/s]: the carrier moves at
 #: a few deg/s and the inner gimbals have +-4 deg of travel, so 60 deg/s means
@@ -101,113 +102,158 @@ def build_rate_loop(
     )
 
 
-def run_scenario(
-    scenario: Scenario,
-    params: ParameterSet | None = None,
-    seed: int | None = None,
-    on_progress: Callable[[float, float], None] | None = None,
-    nfc_params: ParameterSet | None = None,
-) -> RunResult:
-    """Simulate a closed-loop scenario on the MuJoCo twin.
+class ClosedLoop:
+    """One closed-loop run on the twin, sample by sample.
+
+    Holds the twin, the sensors, the controllers and the per-sample buffer
+    (layout `CLOSED_LOOP_SIGNALS`). `reset` returns to t = 0 with the noise
+    seeded afresh, `step` advances one sample, `run` to the end; `result`
+    packs what has run into a `RunResult`.
 
     Args:
         scenario: a ``kind: closed_loop`` scenario.
         params: the twin's parameter set (default: the scenario's file).
         seed: noise seed (default: the scenario's).
-        on_progress: called as ``on_progress(t, duration_s)`` [s] every
-            0.5 s of simulated time and at the end.
         nfc_params: the model the NFC compensates with (default: `params`,
             i.e. a perfectly identified plant).
 
-    Returns:
-        The `RunResult` with metrics (see `isp_twin.metrics`, computed from
-        every sample) and the series decimated by ``record.decimation``; on
-        Ctrl-C the partial result with ``interrupted=True``.
-
     Raises:
         ScenarioError: the scenario is not a closed-loop one.
-        SimulationDiverged: the loop ran away (names the time and signal).
     """
-    from isp_twin.twin import Twin  # mujoco only where the twin lives
 
-    if scenario.kind != "closed_loop":
-        raise ScenarioError(
-            f"{scenario.source or scenario.name}: kind: '{scenario.kind}' cannot be run "
-            "closed loop (expected 'closed_loop')"
-        )
-    if params is None:
-        params_path = scenario.parameters_path
-        params = load_parameters(params_path)
-    else:
-        params_path = params.path
-    nfc_params = nfc_params or params
-    seed = scenario.seed if seed is None else int(seed)
+    def __init__(
+        self,
+        scenario: Scenario,
+        params: ParameterSet | None = None,
+        seed: int | None = None,
+        nfc_params: ParameterSet | None = None,
+    ):
+        from isp_twin.twin import Twin  # mujoco only where the twin lives
 
-    twin = Twin(params)
-    dt = twin.dt
-    n = int(round(scenario.duration_s / dt)) + 1
-    t = np.arange(n) * dt
-    motions = scenario.turntable.motions()
-    # Targets for t_1 .. t_n: step k drives the table to its angle at t_{k+1}.
-    targets = np.stack([table_angles(motions[a], t + dt) for a in TABLE_AXES], axis=1)
-    targets_list = targets.tolist()
+        if scenario.kind != "closed_loop":
+            raise ScenarioError(
+                f"{scenario.source or scenario.name}: kind: '{scenario.kind}' cannot be run "
+                "closed loop (expected 'closed_loop')"
+            )
+        if params is None:
+            self.params_path: Path | None = scenario.parameters_path
+            params = load_parameters(self.params_path)
+        else:
+            self.params_path = params.path
+        self.scenario = scenario
+        self.params = params
+        self.seed = scenario.seed if seed is None else int(seed)
+        nfc_params = nfc_params or params
+        self.twin = twin = Twin(params)
+        dt = twin.dt
+        #: Samples of the run (t_0 .. t_{n-1}).
+        self.n = n = int(round(scenario.duration_s / dt)) + 1
+        self.t = np.arange(n) * dt
+        motions = scenario.turntable.motions()
+        # Targets for t_1 .. t_n: step k drives the table to its angle at t_{k+1}.
+        targets = np.stack([table_angles(motions[a], self.t + dt) for a in TABLE_AXES], axis=1)
+        self._targets = targets.tolist()
+        g = scenario.gyro
+        self._gyro_model = g
+        self.gyros: list[Gyro] = []
+        r = scenario.resolver
+        self.resolvers = [Resolver(r.resolution_deg, r.rate_window, dt) for _ in range(4)]
+        self.loops = [build_rate_loop(scenario, a, nfc_params, dt) for a in INNER_AXES]
+        f = scenario.follower
+        self.followers = [
+            OuterFollower(
+                f.kp_digit_per_deg / DEG,
+                f.ki_digit_per_deg / DEG,
+                f.kd_digit_per_deg_s / DEG,
+                f.bound_digits,
+            )
+            for _ in OUTER_AXES
+        ]
+        self._follow = f.enabled
+        self._centers = [f.inner_az_center_deg * DEG, f.inner_el_center_deg * DEG]
+        self._initial = {
+            a: v * DEG for a, v in scenario.initial_angles_deg.as_dict().items() if v != 0.0
+        }
+        self._bounds = [0.999 * scenario.controller.axis(a).bound_digits for a in INNER_AXES]
+        #: One row per sample (`CLOSED_LOOP_SIGNALS` layout), written as the run goes.
+        self.buffer = np.zeros((n, CLOSED_LOOP_SIGNALS.width))
+        self.reset()
 
-    gyro_rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2)]
-    g = scenario.gyro
-    gyros = [
-        Gyro(g.scale_count_per_deg_s, g.noise_deg_s, g.bandwidth_hz, g.sample_every, dt, rng)
-        for rng in gyro_rngs
-    ]
-    r = scenario.resolver
-    resolvers = [Resolver(r.resolution_deg, r.rate_window, dt) for _ in range(4)]
-    loops = [build_rate_loop(scenario, a, nfc_params, dt) for a in INNER_AXES]
-    f = scenario.follower
-    followers = [
-        OuterFollower(
-            f.kp_digit_per_deg / DEG,
-            f.ki_digit_per_deg / DEG,
-            f.kd_digit_per_deg_s / DEG,
-            f.bound_digits,
-        )
-        for _ in OUTER_AXES
-    ]
-    follow = f.enabled
-    centers = [f.inner_az_center_deg * DEG, f.inner_el_center_deg * DEG]
+    @property
+    def done(self) -> int:
+        """Samples recorded so far."""
+        return self._k
 
-    initial = {a: v * DEG for a, v in scenario.initial_angles_deg.as_dict().items() if v != 0.0}
-    twin.reset(initial or None)
-    for res, a in zip(resolvers, INNER_AXES + OUTER_AXES):
-        res.reset(initial.get(a, 0.0))
-    inner_signals = (
-        "omega_carrier",
-        "omega_inertial",
-        "omega_relative",
-        "gyro",
-        "command",
-        "friction",
-        "nfc",
-        "regime",
-    )
-    columns = [f"{a}/{sig}" for a in INNER_AXES for sig in inner_signals]
-    columns += [f"{a}/{sig}" for a in OUTER_AXES for sig in ("follow_error", "command")]
-    joint_names = TABLE_AXES + INNER_AXES + OUTER_AXES  # the twin's gimbal order after the table
-    # One row per sample, written at once: the per-step Python stays lean.
-    buf = np.zeros((n, len(columns) + len(joint_names)))
-    command = [0.0, 0.0, 0.0, 0.0]
-    row = [0.0] * buf.shape[1]
-    bounds = [0.999 * scenario.controller.axis(a).bound_digits for a in INNER_AXES]
-    saturated = [0.0, 0.0]
-    interrupted = False
-    done = 0
-    try:
-        for k in range(n):
-            st = twin.state()
-            angle = st.angle.tolist()
-            rate = st.rate.tolist()
-            w1 = st.gyro.tolist()
-            wc = st.carrier_rate.tolist()
-            friction = st.friction.tolist()
-            regime = st.regime.tolist()
+    def reset(self) -> None:
+        """Back to t = 0: twin at the initial angles, controllers cleared, noise re-seeded."""
+        dt = self.twin.dt
+        g = self._gyro_model
+        rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(self.seed).spawn(2)]
+        self.gyros = [
+            Gyro(g.scale_count_per_deg_s, g.noise_deg_s, g.bandwidth_hz, g.sample_every, dt, rng)
+            for rng in rngs
+        ]
+        self.twin.reset(self._initial or None)
+        for res, a in zip(self.resolvers, INNER_AXES + OUTER_AXES):
+            res.reset(self._initial.get(a, 0.0))
+        for block in self.loops + self.followers:
+            block.reset()
+        self._command = [0.0, 0.0, 0.0, 0.0]
+        self._saturated = [0.0, 0.0]
+        self._k = 0
+
+    def step(self) -> None:
+        """One sample: sense, control, record row k, advance the twin to t_{k+1}.
+
+        Raises:
+            SimulationDiverged: the loop ran away (names the time and signal);
+                also when called after the last sample.
+        """
+        self._advance(self._k + 1)
+
+    def run(self, on_progress: Callable[[float, float], None] | None = None) -> bool:
+        """Run to the end (or until Ctrl-C).
+
+        Args:
+            on_progress: called as ``on_progress(t, duration_s)`` [s] every
+                `PROGRESS_EVERY` samples and at the end.
+
+        Returns:
+            True when interrupted by Ctrl-C (the samples so far are kept).
+        """
+        n, t_end = self.n, self.t[-1]
+        try:
+            if on_progress is None:
+                self._advance(n)
+            while self._k < n:
+                # report after each sample k with k % PROGRESS_EVERY == 0
+                k = -(-self._k // PROGRESS_EVERY) * PROGRESS_EVERY
+                self._advance(min(n, k + 1))
+                if k + 1 < n:
+                    on_progress(self.t[k], t_end)
+        except KeyboardInterrupt:
+            return True
+        if on_progress is not None:
+            on_progress(t_end, t_end)
+        return False
+
+    def _advance(self, stop: int) -> None:
+        """Samples k .. stop-1; locals hoisted: this is the per-step hot loop."""
+        n = self.n
+        if stop > n:
+            raise SimulationDiverged(f"closed loop: the run ends at sample {n}")
+        twin, buf, t, targets = self.twin, self.buffer, self.t, self._targets
+        gyros, resolvers, loops, followers = self.gyros, self.resolvers, self.loops, self.followers
+        follow, centers, bounds = self._follow, self._centers, self._bounds
+        command, saturated = self._command, self._saturated
+        layout = CLOSED_LOOP_SIGNALS
+        inner = [layout.block(a) for a in INNER_AXES]
+        outer = [layout.block(a) for a in OUTER_AXES]
+        table_cols = slice(layout.joint_columns.start, layout.joint_columns.start + 3)
+        gimbal_cols = slice(table_cols.stop, layout.joint_columns.stop)
+        row = [0.0] * layout.width
+        for k in range(self._k, stop):
+            angle, rate, w1, wc, friction, regime, table_angle = twin.sense()
             meas = [res.read(angle[i]) for i, res in enumerate(resolvers)]
             for i in range(2):
                 if not -DIVERGED_RATE < w1[i] < DIVERGED_RATE:
@@ -230,7 +276,8 @@ def run_scenario(
                         f"{100 * SATURATION_LIMIT:.0f} % of the time; check the controller gains"
                     )
                 command[i] = u
-                row[8 * i : 8 * i + 8] = (
+                # INNER_SIGNALS order
+                row[inner[i]] = (
                     wc[i],
                     w1[i],
                     rate[i],
@@ -249,43 +296,79 @@ def run_scenario(
                     err, true_err = -meas[2 + j][0], -angle[2 + j]
                 uo = followers[j].step(err, meas[2 + j][1])
                 command[2 + j] = uo
-                row[16 + 2 * j : 18 + 2 * j] = (true_err, uo)
-            row[20:23] = st.table_angle.tolist()
-            row[23:27] = angle
+                row[outer[j]] = (true_err, uo)  # OUTER_SIGNALS order
+            row[table_cols] = table_angle
+            row[gimbal_cols] = angle
             buf[k] = row
-            done = k + 1
+            self._k = k + 1
             if k + 1 < n:
-                twin.step(command, targets_list[k])
-            if on_progress is not None and k % PROGRESS_EVERY == 0 and k + 1 < n:
-                on_progress(t[k], t[-1])
-    except KeyboardInterrupt:
-        interrupted = True
-    if on_progress is not None and not interrupted:
-        on_progress(t[-1], t[-1])
+                twin.step(command, targets[k])
 
-    buf = buf[:done]
-    signals = {name: buf[:, c].copy() for c, name in enumerate(columns)}
-    joint_angles = {name: buf[:, len(columns) + c].copy() for c, name in enumerate(joint_names)}
-    t = t[:done]
-    metrics = run_metrics(t, signals, scenario.skip_s)
-    step = scenario.record.decimation
-    if step > 1:
-        # The metrics above saw every sample; the record keeps every n-th.
-        t = t[::step]
-        signals = {k: v[::step] for k, v in signals.items()}
-        joint_angles = {k: v[::step] for k, v in joint_angles.items()}
-    return RunResult(
-        scenario=scenario.name,
-        scenario_text=scenario.text,
-        parameters_file=str(params_path) if params_path is not None else params.name,
-        parameters_text=_read_text(params_path),
-        seed=seed,
-        t=t,
-        signals=signals,
-        joint_angles=joint_angles,
-        metrics=metrics,
-        interrupted=interrupted,
-    )
+    def result(self, interrupted: bool = False) -> RunResult:
+        """The samples run so far as a `RunResult`, with metrics from every sample.
+
+        The series are decimated by the scenario's ``record.decimation``.
+        """
+        scenario = self.scenario
+        done = self._k
+        buf = self.buffer[:done]
+        layout = CLOSED_LOOP_SIGNALS
+        signals = {name: buf[:, c].copy() for c, name in enumerate(layout.signals)}
+        j0 = layout.joint_columns.start
+        joint_angles = {name: buf[:, j0 + c].copy() for c, name in enumerate(layout.joints)}
+        t = self.t[:done]
+        metrics = run_metrics(t, signals, scenario.skip_s)
+        step = scenario.record.decimation
+        if step > 1:
+            # The metrics above saw every sample; the record keeps every n-th.
+            t = t[::step]
+            signals = {k: v[::step] for k, v in signals.items()}
+            joint_angles = {k: v[::step] for k, v in joint_angles.items()}
+        params_path = self.params_path
+        return RunResult(
+            scenario=scenario.name,
+            scenario_text=scenario.text,
+            parameters_file=str(params_path) if params_path is not None else self.params.name,
+            parameters_text=_read_text(params_path),
+            seed=self.seed,
+            t=t,
+            signals=signals,
+            joint_angles=joint_angles,
+            metrics=metrics,
+            interrupted=interrupted,
+        )
+
+
+def run_scenario(
+    scenario: Scenario,
+    params: ParameterSet | None = None,
+    seed: int | None = None,
+    on_progress: Callable[[float, float], None] | None = None,
+    nfc_params: ParameterSet | None = None,
+) -> RunResult:
+    """Simulate a closed-loop scenario on the MuJoCo twin (a whole `ClosedLoop` run).
+
+    Args:
+        scenario: a ``kind: closed_loop`` scenario.
+        params: the twin's parameter set (default: the scenario's file).
+        seed: noise seed (default: the scenario's).
+        on_progress: called as ``on_progress(t, duration_s)`` [s] every
+            0.5 s of simulated time and at the end.
+        nfc_params: the model the NFC compensates with (default: `params`,
+            i.e. a perfectly identified plant).
+
+    Returns:
+        The `RunResult` with metrics (see `isp_twin.metrics`, computed from
+        every sample) and the series decimated by ``record.decimation``; on
+        Ctrl-C the partial result with ``interrupted=True``.
+
+    Raises:
+        ScenarioError: the scenario is not a closed-loop one.
+        SimulationDiverged: the loop ran away (names the time and signal).
+    """
+    loop = ClosedLoop(scenario, params=params, seed=seed, nfc_params=nfc_params)
+    interrupted = loop.run(on_progress)
+    return loop.result(interrupted)
 
 
 def _read_text(path: Path | None) -> str:

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from isp_twin.signals import signal_key
 from isp_twin.units import DEG
 
 __all__ = [
@@ -90,8 +91,8 @@ def run_metrics(
         return {}
     out = {}
     for a in axes:
-        w1 = signals[f"{a}/omega_inertial"][window]
-        m = axis_metrics(w1, signals[f"{a}/omega_carrier"][window])
+        w1 = signals[signal_key(a, "omega_inertial")][window]
+        m = axis_metrics(w1, signals[signal_key(a, "omega_carrier")][window])
         if m["isolation_percent"] is not None:
             out[a] = m
     return out

@@ -51,6 +51,8 @@ __all__ = [
     "Scenario",
     "load_scenario",
     "parse_scenario",
+    "scenario_to_raw",
+    "check_scenario_value",
     "scenario_json_schema",
     "scenario_json_schema_text",
 ]
@@ -529,6 +531,72 @@ def load_scenario(path: str | Path) -> Scenario:
         line = f" line {mark.line + 1}" if mark is not None else ""
         raise ScenarioError(f"{path}:{line} not valid YAML ({exc.__class__.__name__})") from None
     return parse_scenario(raw, path, text)
+
+
+def scenario_to_raw(scenario: Scenario) -> dict:
+    """The scenario as a plain mapping of every key (defaults included), as a file gives it.
+
+    ``parse_scenario(scenario_to_raw(s), s.source)`` builds an equal scenario.
+    Unset optional keys (None) are left out, and so is a motion's
+    `rate_amplitude_deg_s` when its `amplitude_deg` is given (one or the other).
+    """
+
+    def raw(obj):
+        out = {}
+        for f in _fields(type(obj)):
+            value = getattr(obj, f.name)
+            if value is None:
+                continue
+            out[f.name] = raw(value) if dataclasses.is_dataclass(value) else value
+        if isinstance(obj, Motion) and obj.amplitude_deg is not None:
+            del out["rate_amplitude_deg_s"]
+        return out
+
+    return raw(scenario)
+
+
+def check_scenario_value(
+    key_path: str, value: Any, where: str, key_where: str | None = None
+) -> Any:
+    """Check one value against the scenario schema at a dotted key path.
+
+    Args:
+        key_path: e.g. ``controller.inner_az.nfc.gamma``.
+        value: the value to check (as a YAML file would give it).
+        where: how the error names the place (e.g. ``sweep.yaml: grid.<key>[2]``).
+        key_where: how an error in the key path itself names the place
+            (default: `where`).
+
+    Returns:
+        The value converted as the loader would.
+
+    Raises:
+        ScenarioError: unknown key (with the nearest valid key), a key that
+            holds a section rather than a value, wrong type, out of range.
+    """
+    kw = key_where or where
+    cls = Scenario
+    parts = key_path.split(".")
+    for i, part in enumerate(parts):
+        fields = {f.name: f for f in _fields(cls)}
+        if part not in fields:
+            done = ".".join(parts[:i])
+            section = f" in '{done}'" if done else ""
+            raise ScenarioError(
+                f"{kw}: unknown scenario key '{part}'{section}{_nearest_key(part, fields)}; "
+                f"allowed: {', '.join(fields)}"
+            )
+        tp, _ = _unwrap_optional(_hints(cls)[part])
+        if i < len(parts) - 1:
+            if not dataclasses.is_dataclass(tp):
+                raise ScenarioError(f"{kw}: '{'.'.join(parts[: i + 1])}' holds no keys")
+            cls = tp
+        elif dataclasses.is_dataclass(tp):
+            raise ScenarioError(
+                f"{kw}: '{key_path}' is a section; sweep one of its keys: "
+                f"{', '.join(f.name for f in _fields(tp))}"
+            )
+    return _convert(_hints(cls)[parts[-1]], value, fields[parts[-1]].metadata, where)
 
 
 # ---------------------------------------------------------------- JSON Schema

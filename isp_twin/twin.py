@@ -248,6 +248,7 @@ class Twin:
         #: GIMBALS index -> slot; slot -> GIMBALS index.
         self._slot = np.array([d - lo for d in dofs])
         self._gimbal_of_slot = [int(np.flatnonzero(self._slot == s)[0]) for s in range(4)]
+        self._slots = self._slot.tolist()
         self._table_q = np.array([int(m.jnt_qposadr[self._jid[n]]) for n in TABLE_JOINTS])
         self._table_v = np.array([int(m.jnt_dofadr[self._jid[n]]) for n in TABLE_JOINTS])
         self._table_act = np.array([actuator(n) for n in TABLE_JOINTS])
@@ -499,6 +500,35 @@ class Twin:
             friction=friction[slot],
             drive=self._force_g[slot],
             regime=np.array(self._regime, dtype=np.intp)[slot],
+        )
+
+    def sense(self) -> tuple[list[float], ...]:
+        """What the closed loop reads each sample, as lists (the per-step fast path of `state`).
+
+        Returns:
+            (angle (4,), rate (4,), gyro (2,), carrier_rate (2,), friction (4,),
+            regime (4,), table_angle (3,)), the same numbers as the `TwinState`
+            fields of those names, gimbal lists in `GIMBALS` order.
+        """
+        d = self.data
+        sd = d.sensordata
+        gyro = (
+            self._gyro if self._any_meas else [float(sd[self._gyro_az]), float(sd[self._gyro_el])]
+        )
+        g = self._gyro_table
+        w_world = d.site_xmat[self._table_site].reshape(3, 3) @ sd[g : g + 3]
+        slot = self._slots
+        q, v = self._qpos_g.tolist(), self._qvel_g.tolist()
+        c, b = self._constraint_g.tolist(), self._bias_used
+        regime = self._regime
+        return (
+            [q[s] for s in slot],
+            [v[s] for s in slot],
+            list(gyro),
+            (d.xaxis[self._inner_jids] @ w_world).tolist(),
+            [-(c[s] + b[s]) for s in slot],
+            [regime[s] for s in slot],
+            d.qpos[self._table_q].tolist(),
         )
 
     def __repr__(self) -> str:

@@ -170,3 +170,51 @@ def test_campaign_command_rejects_an_open_loop_scenario_and_an_axis_without_j(ca
     assert "closed_loop" in capsys.readouterr().err
     assert main(["campaign", "tracking_0_5Hz", "-n", "1", "--axis", "inner_el"]) == 2
     assert "inner_el sees no carrier motion" in capsys.readouterr().err
+
+
+def test_the_run_records_exactly_the_signal_table_and_the_recorder_styles_each(short_run):
+    from isp_twin.recording import _SIGNALS
+    from isp_twin.signals import CLOSED_LOOP_SIGNALS, INNER_SIGNALS, OUTER_SIGNALS
+
+    assert tuple(short_run.signals) == CLOSED_LOOP_SIGNALS.signals
+    assert tuple(short_run.joint_angles) == CLOSED_LOOP_SIGNALS.joints
+    for sig in INNER_SIGNALS + OUTER_SIGNALS:
+        assert sig.name in _SIGNALS
+    # the block of an axis holds its signals in table order
+    cols = CLOSED_LOOP_SIGNALS.signals[CLOSED_LOOP_SIGNALS.block("outer_el")]
+    assert cols == ("outer_el/follow_error", "outer_el/command")
+
+
+def test_stepping_a_closed_loop_by_hand_gives_the_same_run_and_reset_repeats_it():
+    from isp_twin.closed_loop import ClosedLoop
+
+    scenario = parse_scenario({**SHORT, "duration_s": 2.1}, "short.yaml")
+    loop = ClosedLoop(scenario, seed=7)
+    while loop.done < loop.n:
+        loop.step()
+    stepped = loop.result()
+    loop.reset()
+    assert loop.done == 0
+    loop.run()
+    again = loop.result()
+    whole = run_scenario(scenario, seed=7)
+    assert stepped.metrics == whole.metrics == again.metrics
+    for key in whole.signals:
+        assert np.array_equal(stepped.signals[key], whole.signals[key])
+        assert np.array_equal(again.signals[key], whole.signals[key])
+    with pytest.raises(SimulationDiverged, match="ends at sample"):
+        loop.step()
+
+
+def test_the_twins_fast_sense_reads_the_same_numbers_as_its_state():
+    from isp_twin.closed_loop import ClosedLoop
+
+    loop = ClosedLoop(parse_scenario({**SHORT, "duration_s": 2.1}, "short.yaml"))
+    for _ in range(700):  # moving, with the turntable swinging
+        loop.step()
+    st = loop.twin.state()
+    angle, rate, gyro, carrier, friction, regime, table = loop.twin.sense()
+    assert angle == st.angle.tolist() and rate == st.rate.tolist()
+    assert gyro == st.gyro.tolist() and carrier == st.carrier_rate.tolist()
+    assert friction == st.friction.tolist() and regime == st.regime.tolist()
+    assert table == st.table_angle.tolist()
