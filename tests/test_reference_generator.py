@@ -148,3 +148,9 @@ def test_the_truth_rate_form_drives_the_project_model_onto_the_reference(seed):
     error = np.sqrt(np.mean((model.omega - ref.rate) ** 2))
     # Only stops and breakaways inside a sample differ: far below 1 % of the motion.
     assert error < 0.01 * np.sqrt(np.mean(ref.rate**2))
+
+
+def test_effect_without_reference_is_refused_in_one_line(tmp_path, capsys):
+    assert main(["generate", "--effect", "cogging", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--reference" in err

@@ -181,3 +181,10 @@ def test_halving_the_integration_step_changes_the_response_by_far_less_than_the_
     ]
     change = np.sqrt(np.mean((runs[0].omega_clean - runs[1].omega_clean) ** 2))
     assert change < share * drawn.sensors.gyro_noise_rad_s
+
+
+def test_a_non_finite_command_is_refused_naming_the_sample():
+    u = np.zeros(20)
+    u[7] = np.nan
+    with pytest.raises(ParameterError, match="sample 7"):
+        simulate(linear_axis(), u, seed=None)

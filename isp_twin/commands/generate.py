@@ -48,7 +48,7 @@ def add_parser(sub) -> None:
 
 
 def execute(args) -> int:
-    if args.reference:
+    if args.reference or args.effect is not None:
         return execute_reference(args)
     params = load_parameters(args.params or default_parameters_path())
     if args.which == "paper":

@@ -38,6 +38,10 @@ def execute_reference(args: argparse.Namespace) -> int:
 
     from isp_twin.reference import EFFECT_NAMES, RUN_NAMES, design_experiment
 
+    if not args.reference:
+        raise ParameterError(
+            "--effect needs --reference (it names an effect of the reference simulator)"
+        )
     effect = args.effect or "none"
     if effect != "none" and effect not in EFFECT_NAMES:
         raise ParameterError(

@@ -205,6 +205,10 @@ def simulate(
             f"reference simulate: needs dt > 0 and substeps >= 1, got {dt}, {substeps}"
         )
     u = np.asarray(u_digits, dtype=float)
+    if u.ndim != 1 or not np.all(np.isfinite(u)):
+        bad = np.flatnonzero(~np.isfinite(u.ravel()))
+        where = f"non-finite at sample {bad[0]}" if bad.size else f"shape {u.shape}"
+        raise ParameterError(f"reference simulate: the command must be finite, shape (n,): {where}")
     n = u.shape[0]
     h = dt / substeps
 

@@ -10,7 +10,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,7 +46,7 @@ class Excitation:
     n_samples: int = 6000
     dt: float = 1e-3
     seed: int = 0
-    components: int = field(default=6)
+    components: int = 6
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
