@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from isp_twin.errors import ParameterError, SimulationDiverged
+from isp_twin.reference import effects as fx
 
 __all__ = [
     "REGIME_NAMES",
@@ -198,8 +199,6 @@ def simulate(
         ParameterError: bad dt/substeps or an unknown effect object.
         SimulationDiverged: non-finite or runaway rate.
     """
-    from isp_twin.reference import effects as fx
-
     if dt <= 0.0 or substeps < 1:
         raise ParameterError(
             f"reference simulate: needs dt > 0 and substeps >= 1, got {dt}, {substeps}"
