@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from isp_twin.commands.generate_reference import add_reference_options, execute_reference
 from isp_twin.experiment import (
     EQ7,
     GYRO_NOISE_DEG_S,
@@ -42,10 +43,13 @@ def add_parser(sub) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--engine", default="fast", choices=("fast", "twin"))
     p.add_argument("--quiet", action="store_true")
+    add_reference_options(p)
     p.set_defaults(execute=execute)
 
 
 def execute(args) -> int:
+    if args.reference or args.effect is not None:
+        return execute_reference(args)
     params = load_parameters(args.params or default_parameters_path())
     if args.which == "paper":
         runs = [

@@ -1,0 +1,345 @@
+"""Identification and diagnosis end to end on random axes of the independent reference simulator.
+
+For each case (``clean`` and each library effect) and each axis seed
+0..N-1, draw the axis (`isp_twin.reference.design_experiment`), write its
+runs, then run the commands a user would run, with defaults::
+
+    isp-twin identify train1.csv train2.csv --validate heldout.csv --out params.yaml --json ...
+    isp-twin diagnose train1.csv train2.csv --params params.yaml --holdout heldout.csv --json ...
+
+(subprocesses with PYTHONPATH set to this checkout, 120 s timeout each) and
+print one table row per case:
+
+* identify: fraction of axes with the train RMS error (over both training
+  runs) and the held-out RMS error within 1.3x (clean) / 1.5x (effect) the
+  noise sigma of the truth, and the median of those ratios;
+* diagnose: answer rates right / none / other (for clean, right = none);
+  held-out RMS after diagnosis within the bound; effect parameters within
+  10 % of the truth (delay within one sample, cogging period within 1 %,
+  phases within 0.1 rad wrapped), counted on the axes where the right effect
+  was selected;
+* time per command: median and max [s]; timeouts and failures.
+
+The identify JSON has no ``rmse_over_noise_floor`` today: the ratios are
+computed here from its RMS figures (deg/s) and the truth's noise sigma. The
+diagnose JSON holds rmse_after and noise_floor in rad/s.
+
+Results go to an SQLite file keyed by (case, seed): an interrupted run
+resumes, a finished one reprints its table. ``--jobs`` runs axes in parallel
+processes (at most 2: the machine has 2 cores).
+
+    python benchmarks/identify_reference.py --axes 3 --jobs 2 --db reference.sqlite
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import sqlite3
+import statistics
+import subprocess
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from isp_twin.errors import IspTwinError  # noqa: E402
+from isp_twin.reference import EFFECT_NAMES, RUN_NAMES  # noqa: E402
+
+CASES = ("clean", *EFFECT_NAMES)
+TIMEOUT_S = 120.0
+DEG = math.pi / 180.0
+#: Phase-like parameters are compared by their wrapped difference [rad].
+PHASES = ("phase_rad",)
+
+
+def bound(case: str) -> float:
+    """Allowed RMS error over the noise sigma (issue 8)."""
+    return 1.3 if case == "clean" else 1.5
+
+
+def run_command(args: list[str], cwd: Path, timeout_s: float) -> tuple[int, float, float, str]:
+    """(exit code or -1 on timeout, wall time [s], CPU time [s], last stderr line).
+
+    The CPU time (user + system of the child) does not grow with the load
+    other processes put on the machine; the wall time does.
+    """
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    start = time.perf_counter()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "isp_twin.cli", *args],
+            cwd=cwd,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout_s,
+        )
+        code, lines = done.returncode, done.stderr.strip().splitlines()
+    except subprocess.TimeoutExpired:
+        code, lines = -1, [f"timeout after {timeout_s:g} s"]
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return code, time.perf_counter() - start, cpu, lines[-1] if lines else ""
+
+
+def param_ok(name: str, key: str, fitted: float, true: float, dt: float) -> bool:
+    """The issue's tolerance for one effect parameter."""
+    if key in PHASES:
+        return abs(math.remainder(fitted - true, 2.0 * math.pi)) <= 0.1
+    if name == "input_delay":
+        return abs(fitted - true) <= dt
+    if name == "cogging" and key == "period_rad":
+        return abs(fitted - true) <= 0.01 * abs(true)
+    return abs(fitted - true) <= 0.1 * abs(true)
+
+
+def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) -> dict:
+    """Draw, write, identify, diagnose one axis; the record stored in the database."""
+    import yaml
+
+    from isp_twin.measured import MeasuredData, save_measured
+    from isp_twin.reference import design_experiment
+
+    folder = workdir / case / f"seed{seed}"
+    folder.mkdir(parents=True, exist_ok=True)
+    rec: dict = {"case": case, "seed": seed}
+    start = time.perf_counter()
+    try:
+        exp = design_experiment(seed, None if case == "clean" else case)
+    except IspTwinError as exc:
+        rec["error"] = f"design: {exc}"
+        return rec
+    rec["design_s"] = time.perf_counter() - start
+    truth = exp.truth()
+    for name in RUN_NAMES:
+        run = exp.runs[name]
+        data = MeasuredData(name, run.t, run.u, run.omega, run.theta, None, 1e-3)
+        save_measured(data, folder / f"{name}.csv")
+    (folder / "truth.yaml").write_text(yaml.safe_dump(truth, sort_keys=False))
+    sigma = truth["noise_sigma_deg_s"]
+    rec["noise_deg_s"] = sigma
+    rec["time_constant_s"] = truth["physical"]["time_constant_s"]
+
+    code, secs, cpu, last = run_command(
+        [
+            "identify",
+            "train1.csv",
+            "train2.csv",
+            "--validate",
+            "heldout.csv",
+            "--out",
+            "params.yaml",
+            "--json",
+            "identify.json",
+            "--no-report",
+            "--quiet",
+        ],
+        folder,
+        timeout_s,
+    )
+    rec["identify_s"], rec["identify_cpu_s"], rec["identify_code"] = secs, cpu, code
+    if code != 0:
+        rec["error"] = f"identify exit {code}: {last}"
+        return rec
+    ident = json.loads((folder / "identify.json").read_text())
+    train = [ident["rmse_train"][n] for n in RUN_NAMES[:2]]  # deg/s, equal lengths
+    rec["identify_train_over_noise"] = math.sqrt(np.mean(np.square(train))) / sigma
+    rec["identify_heldout_over_noise"] = ident["rmse_validation"]["heldout"] / sigma
+    true_rate = truth["rate_form"]["regimes"]
+    errs = [
+        abs(ident["rate_form"]["value"][f"{r}.{f}"] / true_rate[r][f] - 1.0)
+        for r in true_rate
+        for f in ("gain", "coulomb")
+    ]
+    rec["identify_gain_coulomb_median_rel_error"] = float(np.median(errs))
+
+    code, secs, cpu, last = run_command(
+        [
+            "diagnose",
+            "train1.csv",
+            "train2.csv",
+            "--params",
+            "params.yaml",
+            "--holdout",
+            "heldout.csv",
+            "--out",
+            "diagnosed.yaml",
+            "--json",
+            "diagnose.json",
+            "--report",
+            "diagnosis",
+            "--no-recording",
+        ],
+        folder,
+        timeout_s,
+    )
+    rec["diagnose_s"], rec["diagnose_cpu_s"], rec["diagnose_code"] = secs, cpu, code
+    if code != 0:
+        rec["error"] = f"diagnose exit {code}: {last}"
+        return rec
+    diag = json.loads((folder / "diagnose.json").read_text())
+    selected = diag["selected_effect"]
+    right = "none" if case == "clean" else case
+    rec["diagnose_selected"] = selected
+    rec["diagnose_answer"] = (
+        "right" if selected == right else ("none" if selected == "none" else "other")
+    )
+    rec["diagnose_heldout_over_noise"] = diag["rmse_after"] / (sigma * DEG)
+    if case != "clean" and selected == case:
+        true_params = truth["effects"][0]["params"]
+        fitted = diag["effect_parameters"]
+        rec["param_errors"] = {
+            k: {"fitted": fitted.get(k), "true": v} for k, v in true_params.items()
+        }
+        rec["params_ok"] = all(
+            k in fitted and param_ok(case, k, fitted[k], v, 1e-3) for k, v in true_params.items()
+        )
+    return rec
+
+
+def open_db(path: Path) -> sqlite3.Connection:
+    db = sqlite3.connect(path)
+    db.execute(
+        "CREATE TABLE IF NOT EXISTS result (case_name TEXT, seed INTEGER, record TEXT, "
+        "PRIMARY KEY (case_name, seed))"
+    )
+    return db
+
+
+def table(records: list[dict], case: str) -> str:
+    n = len(records)
+    lim = bound(case)
+
+    def frac(pred) -> str:
+        return f"{sum(1 for r in records if pred(r))}/{n}"
+
+    def med(key: str) -> str:
+        v = [r[key] for r in records if key in r]
+        return f"{statistics.median(v):.3g}" if v else "-"
+
+    def times(key: str) -> str:
+        v = [r[key] for r in records if key in r]
+        return f"{statistics.median(v):.0f}/{max(v):.0f}" if v else "-"
+
+    ok_id = frac(
+        lambda r: (
+            r.get("identify_train_over_noise", math.inf) <= lim
+            and r.get("identify_heldout_over_noise", math.inf) <= lim
+        )
+    )
+    counts = [
+        sum(1 for r in records if r.get("diagnose_answer") == a) for a in ("right", "none", "other")
+    ]
+    answers = "/".join(map(str, counts)) + f" of {n}"
+    ok_diag = frac(lambda r: r.get("diagnose_heldout_over_noise", math.inf) <= lim)
+    params = "-" if case == "clean" else frac(lambda r: r.get("params_ok", False))
+    errors = sum(1 for r in records if "error" in r)
+    over = sum(
+        1 for r in records if max(r.get("identify_s", 0), r.get("diagnose_s", 0)) > TIMEOUT_S
+    )
+    return (
+        f"| {case} | {n} | {ok_id} | {med('identify_train_over_noise')} | "
+        f"{med('identify_heldout_over_noise')} | {answers} | {ok_diag} | "
+        f"{med('diagnose_heldout_over_noise')} | {params} | {times('identify_s')} | "
+        f"{times('identify_cpu_s')} | {times('diagnose_s')} | {times('diagnose_cpu_s')} | "
+        f"{over} | {errors} |"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--axes", type=int, default=3, help="axes (seeds 0..N-1) per case")
+    p.add_argument(
+        "--cases", default=",".join(CASES), help="comma-separated: clean and effect names"
+    )
+    p.add_argument("--db", type=Path, default=Path("identify_reference.sqlite"))
+    p.add_argument("--workdir", type=Path, default=None, help="run folders (default: beside --db)")
+    p.add_argument("--jobs", type=int, default=1, choices=(1, 2))
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=TIMEOUT_S,
+        help="per command [s] (the issue's limit is 120 s; on a loaded machine a longer one "
+        "still measures accuracy, and runs over 120 s are counted)",
+    )
+    p.add_argument(
+        "--report-only", action="store_true", help="print the table of the stored results"
+    )
+    p.add_argument(
+        "--redo-errors",
+        action="store_true",
+        help="run again the stored axes that ended in an error",
+    )
+    args = p.parse_args(argv)
+    cases = [c.strip() for c in args.cases.split(",") if c.strip()]
+    unknown = [c for c in cases if c not in CASES]
+    if unknown:
+        print(f"unknown case '{unknown[0]}'; known: {', '.join(CASES)}", file=sys.stderr)
+        return 2
+    workdir = args.workdir or args.db.with_suffix("").with_name(args.db.stem + "_runs")
+    db = open_db(args.db)
+    done = {
+        (c, s)
+        for c, s, r in db.execute("SELECT case_name, seed, record FROM result")
+        if not (args.redo_errors and "error" in json.loads(r))
+    }
+    # Seed-major: every case gets its first axes before any gets its last.
+    todo = [(c, s) for s in range(args.axes) for c in cases if (c, s) not in done]
+    if args.report_only:
+        todo = []
+    else:
+        print(f"{len(todo)} axes to run, {len(cases) * args.axes - len(todo)} already in {args.db}")
+    wall = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        futures = {
+            pool.submit(one_axis, c, s, workdir.resolve(), args.timeout): (c, s) for c, s in todo
+        }
+        for fut in as_completed(futures):
+            c, s = futures[fut]
+            rec = fut.result()
+            db.execute("INSERT OR REPLACE INTO result VALUES (?, ?, ?)", (c, s, json.dumps(rec)))
+            db.commit()
+            print(
+                f"  {c} seed {s}: identify {rec.get('identify_train_over_noise', math.nan):.3g}x "
+                f"train, {rec.get('identify_heldout_over_noise', math.nan):.3g}x held out; "
+                f"diagnose {rec.get('diagnose_selected', '-')}"
+                + (f"; {rec['error']}" if "error" in rec else ""),
+                flush=True,
+            )
+    print(f"wall time {time.perf_counter() - wall:.0f} s, jobs {args.jobs}")
+    print()
+    print(
+        "| case | axes | identify train & held-out <= bound | median train/noise | "
+        "median held-out/noise | diagnose right/none/other | held-out after <= bound | "
+        "median after/noise | params ok | identify wall s med/max | identify CPU s med/max | "
+        "diagnose wall s med/max | diagnose CPU s med/max | over 120 s | errors |"
+    )
+    print("|---|" + "---|" * 14)
+    for case in cases:
+        rows = db.execute(
+            "SELECT record FROM result WHERE case_name = ? AND seed < ? ORDER BY seed",
+            (case, args.axes),
+        ).fetchall()
+        records = [json.loads(r[0]) for r in rows]
+        if records:
+            print(table(records, case))
+    load = os.getloadavg()[0]
+    print(
+        f"\nbound: 1.3x noise (clean), 1.5x (effects); load average now {load:.1f} on "
+        f"{os.cpu_count()} cores; results in {args.db}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
