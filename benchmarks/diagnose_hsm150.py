@@ -14,6 +14,7 @@ figure, recording and JSON are in DIR.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 # The sibling script (run as a script, benchmarks/ is on sys.path) owns the
@@ -26,7 +27,7 @@ TRAIN = ["idf_neg_0.04_1", "idf_pos_0.06_1", "idf_neg_0.05_1", "idf_pos_0.07_1"]
 HOLDOUT = ["idf_neg_0.045_1", "idf_pos_0.065_1"]
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--params", type=Path, default=None)
     parser.add_argument("--out", type=Path, default=Path("hsm150_diagnosis"))
@@ -54,8 +55,8 @@ def main() -> None:
         "--json",
         str(args.out / "hsm150_diagnosis.json"),
     ]
-    run_cli(argv)
+    return run_cli(argv)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

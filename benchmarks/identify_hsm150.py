@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -83,7 +84,7 @@ def prior() -> ParameterSet:
     )
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=Path("hsm150_identification"))
     parser.add_argument("--generations", type=int, default=15)
@@ -114,7 +115,7 @@ def main() -> None:
     ]
     code = run_cli(argv)
     if code:
-        return
+        return code
     summary = json.loads((args.out / "hsm150.json").read_text())
     ps = load_parameters(args.out / "hsm150.yaml")
     axis = ps.axis("inner_az")
@@ -143,7 +144,8 @@ def main() -> None:
         z = e - e.mean()
         rho = float(z[1:] @ z[:-1] / (z @ z)) if np.any(z) else math.nan
         print(f"  {n:18s} " + "  ".join(f"{p:+7.2f}" for p in parts) + f"   {rho:.3f}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
