@@ -500,6 +500,8 @@ def load_measured(path: str | Path, mapping: DataMapping | None = None) -> Measu
             too few samples; the message names the file and the row/column.
     """
     path = Path(path)
+    if path.is_dir():
+        raise DataError(f"{path}: is a directory, expected a data file")
     if not path.is_file():
         raise ResourceNotFound(f"{path}: data file not found")
     if mapping is not None and mapping.columns:
@@ -575,6 +577,7 @@ def unique_names(runs: Sequence[MeasuredData]) -> list[MeasuredData]:
     (``paper2_eq7``), then a counter; one file given twice keeps its name.
     Report figures and per-run tables are keyed by name.
     """
+
     def key(d: MeasuredData) -> object:
         return Path(d.source).resolve() if d.source is not None else id(d)
 

@@ -67,6 +67,11 @@ def is_stdout(path: str | Path | None) -> bool:
 # ------------------------------------------------------------------ checks
 
 
+def _writable(path: Path) -> bool:
+    """Write permission for the effective user (as a setuid or seteuid process has it)."""
+    return os.access(path, os.W_OK, effective_ids=os.access in os.supports_effective_ids)
+
+
 def _same_file(a: Path, b: Path) -> bool:
     try:
         if a.exists() and b.exists():
@@ -125,12 +130,12 @@ def _check_one(option: str, path: Path, inputs: list[Path], allow_stdout: bool) 
         if stat.S_ISDIR(mode):
             raise OutputError(f"{option} {path}: is a directory; give a file name")
         if stat.S_ISCHR(mode) or stat.S_ISFIFO(mode):
-            if not os.access(target, os.W_OK):
+            if not _writable(target):
                 raise OutputError(f"{option} {path}: cannot write to it (permission denied)")
             return
         if not stat.S_ISREG(mode):
             raise OutputError(f"{option} {path}: is a socket or block device; give a regular file")
-        if not os.access(target, os.W_OK):
+        if not _writable(target):
             raise OutputError(f"{option} {path}: exists and is read-only")
     _probe_writable(target.parent, option, path)
 

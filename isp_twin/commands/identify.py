@@ -96,10 +96,11 @@ def execute(args) -> int:
         raise ParameterError(f"--rest-rate must be a finite number >= 0, got {args.rest_rate}")
     check_initial_angle(args)
     prior_path = args.prior or default_parameters_path()
+    inputs = [*args.data, *args.validate, prior_path, *([args.describe] if args.describe else [])]
+    check_outputs({"--out": args.out}, inputs)  # the report's default name derives from it
     report = None
     if not args.no_report:
         report = args.report or args.out.with_name(f"{args.out.stem}_report.md")
-    inputs = [*args.data, *args.validate, prior_path, *([args.describe] if args.describe else [])]
     check_outputs({"--out": args.out, "--report": report, "--json": args.json}, inputs)
 
     mapping = mapping_from_args(args)
