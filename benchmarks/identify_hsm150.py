@@ -53,9 +53,9 @@ B_CATALOGUE = 7.03e-5  # N·m·s/rad, README
 T = 1e-3  # s
 
 
-def data_files(names: list[str]) -> list[str]:
+def data_files(names: list[str], folder: Path = DATA) -> list[str]:
     """Paths of the named runs (file stems) of the HSM150 data folder."""
-    return [str(DATA / f"{n}.mat") for n in names]
+    return [str(folder / f"{n}.mat") for n in names]
 
 
 def run_cli(argv: list[str]) -> int:
@@ -86,6 +86,7 @@ def prior() -> ParameterSet:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DATA, help="folder of the HSM150 .mat files")
     parser.add_argument("--out", type=Path, default=Path("hsm150_identification"))
     parser.add_argument("--generations", type=int, default=15)
     parser.add_argument("--population", type=int, default=30)
@@ -95,9 +96,9 @@ def main() -> int:
     prior_path = save_parameters(prior(), args.out / "hsm150_prior.yaml")
     argv = [
         "identify",
-        *data_files(TRAIN),
+        *data_files(TRAIN, args.data),
         "--validate",
-        *data_files(VALIDATE),
+        *data_files(VALIDATE, args.data),
         "--out",
         str(args.out / "hsm150.yaml"),
         "--prior",
@@ -138,7 +139,7 @@ def main() -> int:
         "residual (model - measured) [rad/s]: mean over 0-1 s, 1-10 s, 10-11 s, 11-20 s; lag-1 corr"
     )
     for n in TRAIN + VALIDATE:
-        d = load_measured(DATA / f"{n}.mat", mapping)
+        d = load_measured(args.data / f"{n}.mat", mapping)
         e = simulate_data(rate, d, settings.side, settings.rest_rate_deg_s).omega - d.omega
         parts = [e[(d.t >= a) & (d.t < b)].mean() for a, b in ((0, 1), (1, 10), (10, 11), (11, 20))]
         z = e - e.mean()

@@ -262,8 +262,11 @@ class _Transaction:
             self.made_dirs.append(d)
 
     def commit(self) -> None:
+        # Devices, FIFOs and stdout can fail on write (/dev/full, no reader):
+        # they go first, so that such a failure leaves every file untouched.
+        order = sorted(self.staged, key=lambda s: s.kind == "file")
         try:
-            for s in self.staged:
+            for s in order:
                 s.finish()
         except BaseException:
             self.abort()

@@ -101,7 +101,10 @@ def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
     )
     rrd = tmp_path / "long.rrd"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "isp_twin.cli", "run", str(scenario), "--recording", str(rrd)],
+        [
+            *(sys.executable, "-m", "isp_twin.cli", "run", str(scenario)),
+            *("--recording", str(rrd), "--json", str(tmp_path / "long.json")),
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -121,3 +124,5 @@ def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
     assert "Traceback" not in err
     verify_recording(rrd)
     assert not list(tmp_path.glob("*.part"))
+    # The metrics of the partial run say that they are partial.
+    assert json.loads((tmp_path / "long.json").read_text())["interrupted"] is True
