@@ -296,7 +296,10 @@ class Scenario:
     code), `text` (its text) and `parameters_path` (the parameter file, resolved).
     """
 
-    name: str = _f("", "short name (default: the file's stem)")
+    name: str = _f(
+        "",
+        "short name, also the default recording's file name: no '/' or '\\' (default: the file's stem)",
+    )
     description: str = _f("", "what the scenario reproduces")
     kind: Literal["closed_loop", "open_loop"] = _f("closed_loop", "experiment type")
     # 600 s at 1 kHz is ~130 MB of recorded signals; longer runs are not a use case.
