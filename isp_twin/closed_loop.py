@@ -285,6 +285,7 @@ def run_scenario(
         joint_angles=joint_angles,
         metrics=metrics,
         interrupted=interrupted,
+        view_start_s=scenario.skip_s,
     )
 
 

@@ -207,6 +207,7 @@ def _run_open_loop(scenario, params, params_path, name, seed, engine):
         },
         joint_angles={ol.axis: response.angle},
         metrics=_json_ready(figures.as_dict()),
+        view_start_s=skip,
     )
     payload = {
         "scenario": name,
