@@ -33,7 +33,7 @@ import shutil
 import stat
 import sys
 import tempfile
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
@@ -44,6 +44,7 @@ from isp_twin.errors import OutputError
 
 __all__ = [
     "STDOUT",
+    "after_commit",
     "check_outputs",
     "check_folder",
     "is_stdout",
@@ -250,6 +251,7 @@ def _write_through(tmp: Path, target: Path) -> None:
 class _Transaction:
     staged: list[_Staged] = field(default_factory=list)
     made_dirs: list[Path] = field(default_factory=list)
+    then: list[Callable[[], None]] = field(default_factory=list)
 
     def mkdirs(self, folder: Path) -> None:
         missing = []
@@ -273,6 +275,9 @@ class _Transaction:
             raise
         self.staged.clear()
         self.made_dirs.clear()
+        then, self.then = self.then, []
+        for action in then:
+            action()
 
     def abort(self) -> None:
         for s in self.staged:
@@ -284,6 +289,18 @@ class _Transaction:
             except OSError:
                 pass
         self.made_dirs.clear()
+        self.then.clear()
+
+
+def after_commit(action: Callable[[], None]) -> None:
+    """Run `action` once the current transaction's files are all in place (at
+    once outside a transaction); e.g. streaming to a viewer, whose failure
+    must not undo the files."""
+    tx = _transaction.get()
+    if tx is None:
+        action()
+    else:
+        tx.then.append(action)
 
 
 def _stage(tx: _Transaction, path: Path) -> _Staged:

@@ -46,6 +46,7 @@ import rerun.blueprint as rrb
 import isp_twin
 from isp_twin.atomic import atomic_path
 from isp_twin.errors import DataError, ResourceNotFound
+from isp_twin.outputs import after_commit
 from isp_twin.results import RunResult
 from isp_twin.units import rad_to_deg
 
@@ -472,7 +473,13 @@ def _write(path: Path, log, blueprint: rrb.Blueprint, *, spawn: bool, connect: s
             stream.disconnect()
         _make_readable(tmp)
     if spawn or connect is not None:
-        _send_to_viewer(path, log, blueprint, recording_id, spawn=spawn, connect=connect)
+        # After the file is in place (the whole command's outputs, inside a
+        # transaction): a viewer that fails then cannot cost the file.
+        after_commit(
+            lambda: _send_to_viewer(
+                path, log, blueprint, recording_id, spawn=spawn, connect=connect
+            )
+        )
     return path
 
 

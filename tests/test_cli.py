@@ -115,7 +115,9 @@ def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
         for line in proc.stdout:
             if line.startswith("parameters"):
                 break
-        time.sleep(1.0)
+        # Past the model build into the time loop, also on a loaded machine
+        # (an interrupt before the first step leaves nothing to record).
+        time.sleep(4.0)
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=60)
     finally:

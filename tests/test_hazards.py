@@ -402,3 +402,12 @@ def test_the_documented_real_data_example_runs_from_the_shipped_files(tmp_path, 
     assert axis.identified == (True, False, False, False)
     # The torque-driven motor: Ke stays near the prior's 1, a is a stable pole.
     assert 0.99 < axis.regime("R+").a < 1.0
+
+
+def test_a_viewer_that_fails_does_not_undo_the_recording(ol, tmp_path, capsys):
+    rrd, js = tmp_path / "r.rrd", tmp_path / "r.json"
+    argv = ["run", str(ol), "--recording", str(rrd), "--json", str(js)]
+    assert main([*argv, "--connect", "rerun+http://127.0.0.1:1/proxy"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the recording was saved" in err
+    assert rrd.is_file() and js.is_file() and _no_part_files(tmp_path)
