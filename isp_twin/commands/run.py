@@ -111,6 +111,12 @@ def execute(args: argparse.Namespace) -> int:
         {"--json": args.json, "--recording": recording},
         inputs=[scenario.source, params_path],
     )
+    # The simulator (MuJoCo) is imported before the header: once it is printed
+    # the run starts at once (and Ctrl-C from then on keeps what ran).
+    if scenario.kind == "closed_loop":
+        import isp_twin.closed_loop  # noqa: F401
+    elif args.engine == "twin":
+        import isp_twin.twin  # noqa: F401
     print(f"scenario {name}  ({scenario.source})")
     print(f"parameters {params_path}  seed {seed}")
 
