@@ -14,11 +14,12 @@ figure, recording and JSON are in DIR.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 # The sibling script (run as a script, benchmarks/ is on sys.path) owns the
 # data location, the column mapping and the catalogue prior.
-from identify_hsm150 import data_files, prior, run_cli
+from identify_hsm150 import DATA, data_files, prior, run_cli
 
 from isp_twin.parameters import save_parameters
 
@@ -26,8 +27,9 @@ TRAIN = ["idf_neg_0.04_1", "idf_pos_0.06_1", "idf_neg_0.05_1", "idf_pos_0.07_1"]
 HOLDOUT = ["idf_neg_0.045_1", "idf_pos_0.065_1"]
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DATA, help="folder of the HSM150 .mat files")
     parser.add_argument("--params", type=Path, default=None)
     parser.add_argument("--out", type=Path, default=Path("hsm150_diagnosis"))
     parser.add_argument("--train", nargs="+", default=TRAIN)
@@ -38,9 +40,9 @@ def main() -> None:
     params = args.params or save_parameters(prior(), args.out / "hsm150_prior.yaml")
     argv = [
         "diagnose",
-        *data_files(args.train),
+        *data_files(args.train, args.data),
         "--holdout",
-        *data_files(args.holdout),
+        *data_files(args.holdout, args.data),
         "--params",
         str(params),
         "--side",
@@ -54,8 +56,8 @@ def main() -> None:
         "--json",
         str(args.out / "hsm150_diagnosis.json"),
     ]
-    run_cli(argv)
+    return run_cli(argv)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -52,9 +53,9 @@ B_CATALOGUE = 7.03e-5  # N·m·s/rad, README
 T = 1e-3  # s
 
 
-def data_files(names: list[str]) -> list[str]:
+def data_files(names: list[str], folder: Path = DATA) -> list[str]:
     """Paths of the named runs (file stems) of the HSM150 data folder."""
-    return [str(DATA / f"{n}.mat") for n in names]
+    return [str(folder / f"{n}.mat") for n in names]
 
 
 def run_cli(argv: list[str]) -> int:
@@ -83,8 +84,9 @@ def prior() -> ParameterSet:
     )
 
 
-def main() -> None:
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DATA, help="folder of the HSM150 .mat files")
     parser.add_argument("--out", type=Path, default=Path("hsm150_identification"))
     parser.add_argument("--generations", type=int, default=15)
     parser.add_argument("--population", type=int, default=30)
@@ -94,9 +96,9 @@ def main() -> None:
     prior_path = save_parameters(prior(), args.out / "hsm150_prior.yaml")
     argv = [
         "identify",
-        *data_files(TRAIN),
+        *data_files(TRAIN, args.data),
         "--validate",
-        *data_files(VALIDATE),
+        *data_files(VALIDATE, args.data),
         "--out",
         str(args.out / "hsm150.yaml"),
         "--prior",
@@ -114,7 +116,7 @@ def main() -> None:
     ]
     code = run_cli(argv)
     if code:
-        return
+        return code
     summary = json.loads((args.out / "hsm150.json").read_text())
     ps = load_parameters(args.out / "hsm150.yaml")
     axis = ps.axis("inner_az")
@@ -137,13 +139,14 @@ def main() -> None:
         "residual (model - measured) [rad/s]: mean over 0-1 s, 1-10 s, 10-11 s, 11-20 s; lag-1 corr"
     )
     for n in TRAIN + VALIDATE:
-        d = load_measured(DATA / f"{n}.mat", mapping)
+        d = load_measured(args.data / f"{n}.mat", mapping)
         e = simulate_data(rate, d, settings.side, settings.rest_rate_deg_s).omega - d.omega
         parts = [e[(d.t >= a) & (d.t < b)].mean() for a, b in ((0, 1), (1, 10), (10, 11), (11, 20))]
         z = e - e.mean()
         rho = float(z[1:] @ z[:-1] / (z @ z)) if np.any(z) else math.nan
         print(f"  {n:18s} " + "  ".join(f"{p:+7.2f}" for p in parts) + f"   {rho:.3f}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

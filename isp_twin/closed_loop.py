@@ -336,6 +336,7 @@ class ClosedLoop:
             joint_angles=joint_angles,
             metrics=metrics,
             interrupted=interrupted,
+            view_start_s=scenario.skip_s,
         )
 
 

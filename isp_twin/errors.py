@@ -17,6 +17,7 @@ __all__ = [
     "DataError",
     "SimulationDiverged",
     "ResourceNotFound",
+    "OutputError",
     "nearest",
 ]
 
@@ -43,6 +44,10 @@ class SimulationDiverged(IspTwinError, ArithmeticError):
 
 class ResourceNotFound(IspTwinError, LookupError):
     """A file (scenario, model, parameter set, data) does not exist."""
+
+
+class OutputError(IspTwinError, OSError):
+    """An output cannot be written where asked (folder, permissions, an input...)."""
 
 
 def nearest(name: str, choices: Iterable[str]) -> str:

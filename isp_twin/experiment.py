@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from isp_twin.errors import ParameterError
-from isp_twin.measured import MeasuredData
+from isp_twin.measured import MIN_SAMPLES, MeasuredData
 from isp_twin.open_loop import simulate_open_loop
 from isp_twin.parameters import AXES, ParameterSet
 from isp_twin.units import DEG
@@ -94,6 +94,60 @@ def _stop_rad(axis: str) -> float | None:
     return INNER_STOP_DEG * DEG if axis.startswith("inner") else None
 
 
+#: Ranges of the generator's settings: (low, high, low allowed, high allowed),
+#: those of the scenario schema's open-loop command (every value finite,
+#: frequency below the Nyquist limit of the 1 kHz sample rate; a huge
+#: amplitude is caught as divergence by the simulation).
+_RANGES: dict[str, tuple[float, float, bool, bool]] = {
+    "amplitude_digits": (0.0, math.inf, True, False),
+    "freq_hz": (0.0, math.inf, False, False),
+    "offset_digits": (-math.inf, math.inf, False, False),
+    "initial_angle_deg": (-180.0, 180.0, True, True),
+    "gyro_noise_deg_s": (0.0, math.inf, True, False),
+    "resolver_lsb_deg": (0.0, math.inf, True, False),
+}
+#: Largest run the generator writes [samples] (10^7: 2.8 h at 1 kHz).
+MAX_SAMPLES = 10_000_000
+
+
+def check_excitation(
+    *,
+    amplitude_digits: float,
+    freq_hz: float,
+    offset_digits: float,
+    n_samples: int,
+    initial_angle_deg: float,
+    gyro_noise_deg_s: float,
+    resolver_lsb_deg: float,
+    seed: int,
+) -> None:
+    """Check a generator setting (finite, in range) before anything is simulated.
+
+    Raises:
+        ParameterError: naming the setting, its value and the allowed range.
+    """
+    values = {
+        "amplitude_digits": amplitude_digits,
+        "freq_hz": freq_hz,
+        "offset_digits": offset_digits,
+        "initial_angle_deg": initial_angle_deg,
+        "gyro_noise_deg_s": gyro_noise_deg_s,
+        "resolver_lsb_deg": resolver_lsb_deg,
+    }
+    for key, x in values.items():
+        lo, hi, lo_ok, hi_ok = _RANGES[key]
+        inside = (
+            math.isfinite(x) and (lo <= x if lo_ok else lo < x) and (x <= hi if hi_ok else x < hi)
+        )
+        if not inside:
+            lb, rb = "[" if lo_ok else "(", "]" if hi_ok else ")"
+            raise ParameterError(f"{key}: {x} is outside {lb}{lo:g}, {hi:g}{rb}")
+    if not MIN_SAMPLES <= n_samples <= MAX_SAMPLES:
+        raise ParameterError(f"n_samples: {n_samples} is outside [{MIN_SAMPLES}, {MAX_SAMPLES}]")
+    if seed < 0:
+        raise ParameterError(f"seed: must be >= 0, got {seed}")
+
+
 def generate_openloop(
     params: ParameterSet,
     axis: str = "inner_az",
@@ -133,11 +187,24 @@ def generate_openloop(
         raise ParameterError(
             f"dt {dt} s differs from the parameter set's sample_time_s {params.sample_time_s} s"
         )
-    if n_samples < 2:
-        raise ParameterError(f"n_samples must be at least 2, got {n_samples}")
-    if gyro_noise_deg_s < 0 or resolver_lsb_deg < 0:
+    check_excitation(
+        amplitude_digits=amplitude_digits,
+        freq_hz=freq_hz,
+        offset_digits=offset_digits,
+        n_samples=n_samples,
+        initial_angle_deg=initial_angle_deg,
+        gyro_noise_deg_s=gyro_noise_deg_s,
+        resolver_lsb_deg=resolver_lsb_deg,
+        seed=seed,
+    )
+    if freq_hz >= 0.5 / dt:
         raise ParameterError(
-            f"gyro_noise_deg_s and resolver_lsb_deg must be >= 0, got {gyro_noise_deg_s}, {resolver_lsb_deg}"
+            f"freq_hz: {freq_hz} is not below the Nyquist frequency {0.5 / dt:g} Hz of dt {dt} s"
+        )
+    if _stop_rad(axis) is not None and abs(initial_angle_deg) > INNER_STOP_DEG:
+        raise ParameterError(
+            f"initial_angle_deg: {initial_angle_deg} is beyond the {axis} stop "
+            f"(|angle| <= {INNER_STOP_DEG:g} deg)"
         )
     if engine not in ("fast", "twin"):
         raise ParameterError(f"engine '{engine}' unknown; allowed: fast, twin")

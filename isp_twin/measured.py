@@ -51,19 +51,23 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from isp_twin.atomic import atomic_path
 from isp_twin.errors import DataError, ResourceNotFound, nearest
+from isp_twin.input_files import load_yaml, read_text
 from isp_twin.units import DEG
 
 __all__ = [
     "SIGNALS",
     "MIN_SAMPLES",
     "UNIFORM_TOLERANCE",
+    "SAMPLE_PERIOD_TOLERANCE",
+    "check_sample_period",
+    "unique_names",
     "DERIVATIVE_WINDOW",
     "ColumnSpec",
     "DataMapping",
@@ -83,6 +87,13 @@ SIGNALS: tuple[str, ...] = ("t", "u", "omega", "theta")
 MIN_SAMPLES = 20
 #: Largest allowed deviation of a sample period from the median, relative.
 UNIFORM_TOLERANCE = 0.01
+#: Largest relative difference between a run's measured sample period (the
+#: median step of its time column) and the parameter set's sample_time_s,
+#: shared by `identify` and `diagnose` (`check_sample_period`). The parameters
+#: of Eq. 6 are per sample, so a period off by x scales the model's time
+#: constants by x; 1 % is below the spread of identified values between runs
+#: and lets a logger clock drifting by tens of ppm through.
+SAMPLE_PERIOD_TOLERANCE = 0.01
 #: Savitzky-Golay window [samples] for the rate of angle-only data (odd).
 DERIVATIVE_WINDOW = 11
 
@@ -263,15 +274,8 @@ def mapping_from_options(options: Sequence[str], initial_angle_deg: float = 0.0)
 
 def load_data_description(path: str | Path) -> DataMapping:
     """Load a YAML data description (format in the module docstring)."""
-    import yaml
-
     path = Path(path)
-    if not path.is_file():
-        raise ResourceNotFound(f"{path}: data description not found")
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise DataError(f"{path}: not valid YAML ({exc.__class__.__name__})") from None
+    raw, _ = load_yaml(path, "data description", DataError)
     top = ("variable", "columns", "initial_angle_deg")
     if not isinstance(raw, Mapping) or "columns" not in raw:
         raise DataError(f"{path}: expected a mapping with a 'columns' key")
@@ -325,8 +329,9 @@ def load_data_description(path: str | Path) -> DataMapping:
 
 def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
     """Header names and the numeric table (rows, cols) of a CSV file."""
-    with path.open(newline="") as fh:
-        rows = list(csv.reader(line for line in fh if not line.startswith("#")))
+    text = read_text(path, "data file", DataError)
+    lines = text.splitlines(keepends=True)
+    rows = list(csv.reader(line for line in lines if not line.startswith("#")))
     rows = [r for r in rows if r and any(c.strip() for c in r)]
     if not rows:
         raise DataError(f"{path}: empty file (expected a header row {','.join(SIGNALS)})")
@@ -495,6 +500,8 @@ def load_measured(path: str | Path, mapping: DataMapping | None = None) -> Measu
             too few samples; the message names the file and the row/column.
     """
     path = Path(path)
+    if path.is_dir():
+        raise DataError(f"{path}: is a directory, expected a data file")
     if not path.is_file():
         raise ResourceNotFound(f"{path}: data file not found")
     if mapping is not None and mapping.columns:
@@ -539,3 +546,57 @@ def save_measured(data: MeasuredData, path: str | Path) -> Path:
     with atomic_path(path) as tmp:
         np.savetxt(tmp, table, delimiter=",", header=",".join(SIGNALS), comments="", fmt="%.10g")
     return path
+
+
+def check_sample_period(
+    runs: Sequence[MeasuredData], sample_time_s: float, params_name: str
+) -> list[str]:
+    """Check each run's period against the parameters'; one report line per run.
+
+    Raises:
+        DataError: a run's period is more than `SAMPLE_PERIOD_TOLERANCE` off.
+    """
+    lines = []
+    for d in runs:
+        off = (d.dt - sample_time_s) / sample_time_s
+        where = d.source if d.source is not None else d.name
+        if abs(off) > SAMPLE_PERIOD_TOLERANCE:
+            raise DataError(
+                f"{where}: measured sample period {d.dt:.9g} s is {100 * off:+.3g} % off the "
+                f"{sample_time_s:.9g} s of {params_name} ({SAMPLE_PERIOD_TOLERANCE:.0%} allowed; "
+                "the parameters are per sample): resample the data"
+            )
+        lines.append(f"{d.name}: sample period {d.dt:.9g} s ({1e6 * off:+.0f} ppm)")
+    return lines
+
+
+def unique_names(runs: Sequence[MeasuredData]) -> list[MeasuredData]:
+    """The runs, renamed where two share a name (the same file stem in two folders).
+
+    Two different files with one name get their parent folder prepended
+    (``paper2_eq7``), then a counter; one file given twice keeps its name.
+    Report figures and per-run tables are keyed by name.
+    """
+
+    def key(d: MeasuredData) -> object:
+        return Path(d.source).resolve() if d.source is not None else id(d)
+
+    files: dict[str, set] = {}
+    for d in runs:
+        files.setdefault(d.name, set()).add(key(d))
+    given: dict[object, str] = {}  # the same file given twice keeps one name
+    taken: set[str] = set()
+    out = []
+    for d in runs:
+        if key(d) not in given:
+            name = d.name
+            if len(files[name]) > 1 and d.source is not None:
+                name = f"{Path(d.source).resolve().parent.name}_{name}"
+            base, k = name, 2
+            while name in taken:
+                name, k = f"{base}_{k}", k + 1
+            taken.add(name)
+            given[key(d)] = name
+        name = given[key(d)]
+        out.append(d if name == d.name else replace(d, name=name))
+    return out

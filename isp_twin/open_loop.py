@@ -14,6 +14,7 @@ import numpy as np
 
 from isp_twin.axis_model import simulate
 from isp_twin.effects import make_effect
+from isp_twin.errors import SimulationDiverged
 from isp_twin.parameters import ParameterSet
 from isp_twin.units import DEG
 
@@ -127,6 +128,7 @@ def simulate_open_loop(
             angle_limit=angle_limit_rad,
             effects=[make_effect(e, dt) for e in spec.effects],
         )
+        _check_divergence(t, u, r.omega, axis)
         return OpenLoopResponse(t, u, r.omega, r.angle, axis, engine)
 
     from isp_twin.twin import GIMBALS, Twin
@@ -145,6 +147,27 @@ def simulate_open_loop(
         state = twin.state()
         omega[k], angle[k] = state.rate[i], state.angle[i]
     return OpenLoopResponse(t, u, omega, angle, axis, engine)
+
+
+def _check_divergence(t: np.ndarray, u: np.ndarray, omega: np.ndarray, axis: str) -> None:
+    """The MuJoCo twin's runaway limits, applied to a fast-model run.
+
+    Raises:
+        SimulationDiverged: a command or rate out of the twin's limits, or non-finite.
+    """
+    from isp_twin.twin import MAX_COMMAND, MAX_RATE
+
+    for what, x, limit, unit in (
+        ("command", u, MAX_COMMAND, "digits"),
+        ("rate", omega, MAX_RATE, "rad/s"),
+    ):
+        bad = np.flatnonzero(~(np.abs(x) < limit))
+        if bad.size:
+            k = bad[0]
+            raise SimulationDiverged(
+                f"fast model diverged at t={t[k]:.4f} s: {axis} {what} = {x[k]} {unit} "
+                f"(allowed |{what}| < {limit:g})"
+            )
 
 
 def _runs(mask: np.ndarray, merge_gap: int = 0) -> list[tuple[int, int]]:

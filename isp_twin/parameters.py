@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from isp_twin.atomic import write_text_atomic
-from isp_twin.errors import ParameterError, ResourceNotFound, nearest
+from isp_twin.errors import ParameterError, nearest
 from isp_twin.units import DEG
 
 __all__ = [
@@ -325,15 +325,10 @@ def load_parameters(path: str | Path) -> ParameterSet:
         ParameterError: a key is missing, unknown, or a value is out of range;
             the message names the file and the key path.
     """
-    import yaml
+    from isp_twin.input_files import load_yaml
 
     path = Path(path)
-    if not path.is_file():
-        raise ResourceNotFound(f"{path}: parameter file not found")
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise ParameterError(f"{path}: not valid YAML ({exc.__class__.__name__})") from None
+    raw, _ = load_yaml(path, "parameter file", ParameterError)
     top = ("name", "description", "sample_time_s", "units", "axes")
     _check_keys(raw, top, path, [], required=("name", "sample_time_s", "units", "axes"))
     if raw["units"] != UNITS:

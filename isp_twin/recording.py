@@ -46,6 +46,7 @@ import rerun.blueprint as rrb
 import isp_twin
 from isp_twin.atomic import atomic_path
 from isp_twin.errors import DataError, ResourceNotFound
+from isp_twin.outputs import after_commit
 from isp_twin.results import RunResult
 from isp_twin.units import rad_to_deg
 
@@ -241,7 +242,12 @@ def record_run(
     if decimate_3d < 1:
         raise DataError(f"decimate_3d must be >= 1, got {decimate_3d}")
     groups = _signal_groups(signals)
-    blueprint = _run_blueprint(groups, has_scene=bool(joints))
+    blueprint = _run_blueprint(
+        groups,
+        has_scene=bool(joints),
+        isolation=_isolation_titles(result.metrics),
+        view_start_s=float(result.view_start_s),
+    )
 
     def log(stream: rr.RecordingStream) -> None:
         _log_metadata_run(stream, result, len(t))
@@ -467,7 +473,13 @@ def _write(path: Path, log, blueprint: rrb.Blueprint, *, spawn: bool, connect: s
             stream.disconnect()
         _make_readable(tmp)
     if spawn or connect is not None:
-        _send_to_viewer(path, log, blueprint, recording_id, spawn=spawn, connect=connect)
+        # After the file is in place (the whole command's outputs, inside a
+        # transaction): a viewer that fails then cannot cost the file.
+        after_commit(
+            lambda: _send_to_viewer(
+                path, log, blueprint, recording_id, spawn=spawn, connect=connect
+            )
+        )
     return path
 
 
@@ -739,8 +751,25 @@ def _markdown_table(rows: Mapping[str, Any]) -> str:
 # Layout
 
 
-def _series_view(origin: str, name: str) -> rrb.TimeSeriesView:
-    return rrb.TimeSeriesView(origin=origin, name=name)
+def _series_view(
+    origin: str, name: str, start_s: float = 0.0, contents: Sequence[str] | None = None
+) -> rrb.TimeSeriesView:
+    """A time-series view; data before `start_s` (the start-up transient) is not
+    drawn, so the y axis scales to the part worth looking at."""
+    time_ranges = None
+    if start_s > 0:
+        time_ranges = rrb.VisibleTimeRange(
+            TIMELINE,
+            start=rrb.TimeRangeBoundary.absolute(seconds=start_s),
+            end=rrb.TimeRangeBoundary.infinite(),
+        )
+    return rrb.TimeSeriesView(
+        origin=origin,
+        contents=list(contents) if contents is not None else "$origin/**",
+        name=name,
+        time_ranges=time_ranges,
+        plot_legend=rrb.PlotLegend(corner="LeftTop"),
+    )
 
 
 def _metadata_tabs(names: Sequence[str]) -> rrb.Tabs:
@@ -750,39 +779,101 @@ def _metadata_tabs(names: Sequence[str]) -> rrb.Tabs:
     )
 
 
-def _run_blueprint(groups: Mapping[str, Mapping[str, list[str]]], *, has_scene: bool):
-    """3D view and metadata | one column per inner axis | outer follow errors, others."""
-    left: list[Any] = []
+#: Entity (below /<axis>/rates) of the inertial rate error ω1 that J measures.
+_OMEGA1 = "omega_inertial_deg_s"
+#: Where the 3D camera looks from and at [m] (world frame, z up): far enough to
+#: hold the whole turntable (about 0.6 m wide, 0.8 m tall) while it rocks.
+_EYE_POSITION = (1.9, -2.3, 1.5)
+_EYE_TARGET = (0.0, 0.0, 0.3)
+
+
+def _isolation_titles(metrics: Mapping[str, Any]) -> dict[str, str]:
+    """axis -> title of its ω1 panel, with J of Eq. 10 when the metrics have it."""
+    out = {}
+    for axis in INNER_AXES:
+        m = metrics.get(axis)
+        if isinstance(m, Mapping) and "isolation_percent" in m:
+            j = m["isolation_percent"]
+            out[axis] = f"{axis}: isolation error ω1 [deg/s], J = {j:.2f} %"
+    return out
+
+
+def _run_blueprint(
+    groups: Mapping[str, Mapping[str, list[str]]],
+    *,
+    has_scene: bool,
+    isolation: Mapping[str, str] | None = None,
+    view_start_s: float = 0.0,
+):
+    """Tabs of few, large views: isolation (3D and each inner axis's ω1 with J),
+    one tab per inner axis (its rates, drive, friction, regime), the outer
+    gimbals, the metadata."""
+    isolation = isolation or {}
+    tabs: list[Any] = []
+    first: list[Any] = []
     if has_scene:
-        left.append(rrb.Spatial3DView(origin="/scene", name="turntable and gimbals"))
-    left.append(_metadata_tabs(("run", "scenario", "parameters", "metrics")))
-    columns: list[Any] = [rrb.Vertical(*left, name="scene")]
+        first.append(
+            rrb.Spatial3DView(
+                origin="/scene",
+                name="turntable and gimbals",
+                eye_controls=rrb.EyeControls3D(
+                    kind=rrb.Eye3DKind.Orbital,
+                    position=_EYE_POSITION,
+                    look_target=_EYE_TARGET,
+                    eye_up=(0.0, 0.0, 1.0),
+                ),
+            )
+        )
+    omega1 = [
+        _series_view(f"/{axis}/rates/{_OMEGA1}", title, view_start_s)
+        for axis, title in isolation.items()
+        if axis in groups and f"/{axis}/rates/{_OMEGA1}" in groups[axis].get("rates", [])
+    ]
+    if omega1:
+        first.append(rrb.Vertical(*omega1))
+    if first:
+        tabs.append(rrb.Horizontal(*first, name="isolation"))
 
     for axis in INNER_AXES:
         if axis not in groups:
             continue
-        views = [
-            _series_view(f"/{axis}/{group}", f"{axis} {_GROUP_TITLES[group]}")
-            for group in ("rates", "drive", "friction", "regime", "angle", _OTHER)
-            if group in groups[axis]
-        ]
-        columns.append(rrb.Vertical(*views, name=axis))
+        views = []
+        for group in ("rates", "drive", "friction", "regime", "angle", _OTHER):
+            if group not in groups[axis]:
+                continue
+            contents = None
+            if group == "rates" and omega1:  # ω1 has its own panel
+                contents = ["$origin/**", f"- $origin/{_OMEGA1}"]
+            views.append(
+                _series_view(
+                    f"/{axis}/{group}", f"{axis} {_GROUP_TITLES[group]}", view_start_s, contents
+                )
+            )
+        tabs.append(rrb.Grid(*views, grid_columns=2 if len(views) > 2 else 1, name=axis))
 
     last: list[Any] = []
     follow = [f"/{a}/follow/**" for a in groups if "follow" in groups[a]]
     if follow:
-        last.append(
-            rrb.TimeSeriesView(origin="/", contents=follow, name="outer follow error [deg]")
-        )
+        last.append(_series_view("/", "outer follow error [deg]", view_start_s, contents=follow))
     for axis, axis_groups in groups.items():
         if axis in INNER_AXES:
             continue
         for group in axis_groups:
             if group != "follow":
-                last.append(_series_view(f"/{axis}/{group}", f"{axis} {_GROUP_TITLES[group]}"))
+                last.append(
+                    _series_view(f"/{axis}/{group}", f"{axis} {_GROUP_TITLES[group]}", view_start_s)
+                )
     if last:
-        columns.append(rrb.Vertical(*last, name="outer and other"))
-    return rrb.Blueprint(rrb.Horizontal(*columns), collapse_panels=False)
+        tabs.append(rrb.Vertical(*last, name="outer gimbals"))
+    tabs.append(_metadata_tabs(("run", "scenario", "parameters", "metrics")))
+    # The side panels and the time panel start collapsed (room for the plots);
+    # the play bar stays.
+    return rrb.Blueprint(
+        rrb.Tabs(*tabs, active_tab=0),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(timeline=TIMELINE, state="collapsed"),
+    )
 
 
 def _residual_blueprint(name: str) -> rrb.Blueprint:

@@ -45,6 +45,8 @@ def find_scenario(name: str | Path) -> Path:
     path = Path(name)
     if path.is_file():
         return path
+    if path.is_dir():
+        raise ResourceNotFound(f"{name}: is a directory, expected a scenario file")
     shipped = resource_root() / "scenarios"
     for candidate in (shipped / path.name, shipped / f"{path.name}.yaml"):
         if candidate.is_file():

@@ -30,6 +30,8 @@ class RunResult:
         metrics: JSON-ready metrics (see `isp_twin.metrics`).
         interrupted: True when the run was stopped early (Ctrl-C); the series
             then end at the last completed sample.
+        view_start_s: where the plots of a viewer start [s]: after the
+            start-up transient (the metrics' skip), 0 to show everything.
     """
 
     scenario: str
@@ -42,3 +44,4 @@ class RunResult:
     joint_angles: Mapping[str, np.ndarray] = field(default_factory=dict)
     metrics: Mapping[str, Any] = field(default_factory=dict)
     interrupted: bool = False
+    view_start_s: float = 0.0

@@ -298,7 +298,10 @@ class Scenario:
     code), `text` (its text) and `parameters_path` (the parameter file, resolved).
     """
 
-    name: str = _f("", "short name (default: the file's stem)")
+    name: str = _f(
+        "",
+        "short name, also the default recording's file name: no '/' or '\\' (default: the file's stem)",
+    )
     description: str = _f("", "what the scenario reproduces")
     kind: Literal["closed_loop", "open_loop"] = _f("closed_loop", "experiment type")
     # 600 s at 1 kHz is ~130 MB of recorded signals; longer runs are not a use case.
@@ -431,6 +434,9 @@ def _convert(tp, raw, meta: Mapping, where: str):
             raise ScenarioError(f"{where}: expected true or false, got {raw!r}")
         return raw
     if tp is int:
+        # `1e4` (a float to YAML) names an integer too.
+        if isinstance(raw, float) and math.isfinite(raw) and raw.is_integer():
+            raw = int(raw)
         if isinstance(raw, bool) or not isinstance(raw, int):
             raise ScenarioError(f"{where}: expected an integer, got {raw!r}")
         _check_range(raw, meta, where)
@@ -494,6 +500,12 @@ def parse_scenario(raw: Any, source: str | Path = "<scenario>", text: str = "") 
     """Build a `Scenario` from parsed YAML; errors name `source` and the key path."""
     source_path = Path(source) if not str(source).startswith("<") else None
     scenario = _build(Scenario, raw if raw is not None else {}, f"{source}: ")
+    if scenario.name and (set(scenario.name) & {"/", "\\", "\0"} or scenario.name in (".", "..")):
+        # The name becomes the file name of the default recording.
+        raise ScenarioError(
+            f"{source}: name: {scenario.name!r} is not a name (no '/', '\\', '.' or '..'); "
+            "use --recording PATH to write elsewhere"
+        )
     name = scenario.name or (source_path.stem if source_path else "scenario")
     scenario = dataclasses.replace(scenario, name=name, source=source_path, text=text)
     if scenario.kind == "closed_loop":
@@ -518,18 +530,11 @@ def load_scenario(path: str | Path) -> Scenario:
         ScenarioError: invalid YAML, unknown key, wrong type or out-of-range
             value; the message names the file and the key path.
     """
-    import yaml
-
+    from isp_twin.input_files import load_yaml
     from isp_twin.resources import find_scenario
 
     path = find_scenario(path)
-    text = path.read_text()
-    try:
-        raw = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f" line {mark.line + 1}" if mark is not None else ""
-        raise ScenarioError(f"{path}:{line} not valid YAML ({exc.__class__.__name__})") from None
+    raw, text = load_yaml(path, "scenario file", ScenarioError)
     return parse_scenario(raw, path, text)
 
 

@@ -71,7 +71,7 @@ def test_plain_eq7_reaches_the_stop(paper_params):
         ({"axis": "middle_az"}, "axis 'middle_az' unknown"),
         ({"dt": 2e-3}, "differs from the parameter set's sample_time_s"),
         ({"engine": "gpu"}, "engine 'gpu' unknown"),
-        ({"gyro_noise_deg_s": -1.0}, "must be >= 0"),
+        ({"gyro_noise_deg_s": -1.0}, r"gyro_noise_deg_s: -1.0 is outside \[0, inf\)"),
     ],
 )
 def test_bad_arguments(paper_params, kwargs, message):

@@ -238,7 +238,7 @@ def test_identify_command_rejects_data_at_another_sample_rate(tmp_path, capsys):
     )
     assert main(["identify", str(path), "--out", str(tmp_path / "p.yaml")]) == 2
     assert (
-        "slow.csv: sample period 0.002 s, but the parameters are per sample of 0.001 s"
+        "slow.csv: measured sample period 0.002 s is +100 % off the 0.001 s"
         in capsys.readouterr().err
     )
 

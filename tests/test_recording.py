@@ -404,3 +404,21 @@ def test_residual_of_wrong_length_is_refused_naming_the_array(tmp_path):
     with pytest.raises(DataError, match="residuals 'inner_el': array 'angle'"):
         record_residuals("inner_el", t, t, t, tmp_path / "r.rrd", angle=np.zeros(99))
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_isolation_error_has_its_own_view_titled_with_j(run, tmp_path):
+    from dataclasses import replace
+
+    metrics = {
+        "inner_az": {"isolation_percent": 13.714, "max_abs_error_deg_s": 0.4},
+        "inner_el": {"isolation_percent": 11.652, "max_abs_error_deg_s": 0.3},
+    }
+    path = record_run(replace(run, metrics=metrics, view_start_s=1.0), tmp_path / "j.rrd")
+    views = read_views(path)
+    for axis, j in (("inner_az", "13.71"), ("inner_el", "11.65")):
+        title = f"{axis}: isolation error ω1 [deg/s], J = {j} %"
+        assert (title, f"/{axis}/rates/omega_inertial_deg_s", "TimeSeries") in views
+    # Without J in the metrics (an open-loop run) there is no such view.
+    assert not any(
+        "isolation error" in name for name, _, _ in read_views(record_run(run, tmp_path / "n.rrd"))
+    )

@@ -8,9 +8,26 @@ import os
 from pathlib import Path
 
 from isp_twin.atomic import write_text_atomic
+from isp_twin.commands.progress import working
 from isp_twin.errors import ScenarioError
+from isp_twin.outputs import check_outputs, is_stdout, transaction
 
-__all__ = ["add_parser", "execute"]
+__all__ = ["add_parser", "execute", "STATS_UNITS"]
+
+#: Units of a campaign's statistics in JSON (Tables 5, 6).
+STATS_UNITS = {
+    "runs": "% (J of Eq. 10, one per seed)",
+    "average": "%",
+    "best": "%",
+    "worst": "%",
+    "range": "percentage points",
+    "variance": "1 (sample variance of J as a fraction, J/100; the paper's square error)",
+    "max_abs_error_deg_s": "deg/s",
+    "rms_error_deg_s": "deg/s",
+    "mean_max_abs_error_deg_s": "deg/s",
+    "mean_rms_error_deg_s": "deg/s",
+    "relative_reduction_percent": "% of the PI average",
+}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -53,9 +70,12 @@ def execute(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     if scenario.kind != "closed_loop":
         raise ScenarioError(f"{scenario.source}: kind: a campaign needs a closed_loop scenario")
+    inputs = [scenario.source, *([args.params] if args.params is not None else [])]
+    check_outputs({"--json": args.json}, inputs)
     params = load_parameters(args.params) if args.params is not None else None
     print(f"campaign {scenario.name}: {args.runs} runs x (PI, PI+NFC), axis {args.axis}")
-    result = run_campaign(scenario, args.runs, args.seed, params, args.axis, max(1, args.jobs))
+    with working(f"campaign {scenario.name}, {2 * args.runs} runs"):
+        result = run_campaign(scenario, args.runs, args.seed, params, args.axis, max(1, args.jobs))
     print(f"seeds {result.seeds[0]}..{result.seeds[-1]}  parameters {result.parameters_file}\n")
     print(
         f"{'controller':<8} {'average':>8} {'best':>7} {'worst':>7} {'range':>6} "
@@ -75,6 +95,9 @@ def execute(args: argparse.Namespace) -> int:
         "(paper: 36.9 % tracking, 41.8 % isolation)"
     )
     if args.json is not None:
-        write_text_atomic(args.json, json.dumps(result.as_json(), indent=2) + "\n")
-        print(f"statistics written to {args.json}")
+        payload = {**result.as_json(), "units": STATS_UNITS}
+        with transaction():
+            write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
+        if not is_stdout(args.json):
+            print(f"statistics written to {args.json}")
     return 0

@@ -4,11 +4,13 @@ own columns map onto t, u, omega, theta."""
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
+from isp_twin.errors import DataError
 from isp_twin.measured import DataMapping, load_data_description, mapping_from_options
 
-__all__ = ["add_data_options", "mapping_from_args"]
+__all__ = ["add_data_options", "check_initial_angle", "mapping_from_args"]
 
 
 def add_data_options(p: argparse.ArgumentParser) -> None:
@@ -30,6 +32,12 @@ def add_data_options(p: argparse.ArgumentParser) -> None:
         metavar="DEG",
         help="angle at the first sample [deg] for rate-only data (the angle is integrated)",
     )
+
+
+def check_initial_angle(args: argparse.Namespace) -> None:
+    """--initial-angle must be a finite angle."""
+    if not math.isfinite(args.initial_angle):
+        raise DataError(f"--initial-angle must be a finite angle [deg], got {args.initial_angle}")
 
 
 def mapping_from_args(args: argparse.Namespace) -> DataMapping | None:

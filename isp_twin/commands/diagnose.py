@@ -8,10 +8,16 @@ from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.atomic import write_text_atomic
-from isp_twin.commands.data_options import add_data_options, mapping_from_args
+from isp_twin.commands.data_options import (
+    add_data_options,
+    check_initial_angle,
+    mapping_from_args,
+)
+from isp_twin.commands.progress import working
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
-from isp_twin.measured import load_measured
+from isp_twin.measured import check_sample_period, load_measured, unique_names
+from isp_twin.outputs import check_outputs, is_stdout, transaction
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.units import DEG
 
@@ -86,24 +92,49 @@ def execute(args: argparse.Namespace) -> int:
         raise ParameterError(f"--max-rounds must be >= 1, got {args.max_rounds}")
     if args.iterations < 1:
         raise ParameterError(f"--iterations must be >= 1, got {args.iterations}")
+    check_initial_angle(args)
+    report_dir = Path(
+        args.report or (args.out.parent if args.out is not None else Path("diagnosis_report"))
+    )
+    prefix = f"{args.out.stem}_" if args.out is not None else ""
+    report_path = report_dir / f"{prefix}diagnosis.md"
+    recording = None
+    if not args.no_recording:
+        recording = args.recording or report_dir / f"{prefix}residuals.rrd"
+    inputs = [*args.data, *args.holdout, args.params, *([args.describe] if args.describe else [])]
+    check_outputs(
+        {
+            "--out": args.out,
+            "--report": report_path,
+            "--recording": recording,
+            "--json": args.json,
+        },
+        inputs,
+    )
+
     params = load_parameters(args.params)
     mapping = mapping_from_args(args)
-    train = [load_measured(p, mapping) for p in args.data]
-    holdout = [load_measured(p, mapping) for p in args.holdout]
+    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.holdout]])
+    train, holdout = runs[: len(args.data)], runs[len(args.data) :]
+    for line in check_sample_period(runs, params.sample_time_s, str(params.path or params.name)):
+        print(line)
     candidates = None
     if args.candidates:
         candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
-    diag = diagnose(
-        train,
-        params,
-        args.axis,
-        holdout=holdout,
-        candidates=candidates,
-        max_rounds=args.max_rounds,
-        max_iter=args.iterations,
-        side=args.side,
-    )
+    with working(f"diagnose {args.axis} on {len(train)} run(s)"):
+        diag = diagnose(
+            train,
+            params,
+            args.axis,
+            holdout=holdout,
+            candidates=candidates,
+            max_rounds=args.max_rounds,
+            max_iter=args.iterations,
+            side=args.side,
+        )
     result = diag.to_json()
+    result["sample_period_s"] = {d.name: d.dt for d in runs}
+    result.setdefault("units", {})["sample_period_s"] = "s"
 
     print(
         f"diagnosis of {args.axis} on {len(train)} run(s); held out: {', '.join(diag.holdout_names)}"
@@ -134,22 +165,22 @@ def execute(args: argparse.Namespace) -> int:
                 "they are the ones written)"
             )
 
+    with transaction():
+        if args.out is not None:
+            out_set = replace(diag.params_out, name=args.out.stem, path=None)
+            save_parameters(out_set, args.out)
+        write_report(diag, report_path, args.out)
+        if recording is not None:
+            write_recording(diag, recording)
+        if args.json is not None:
+            text = json.dumps(result, indent=2, default=_json_default) + "\n"
+            write_text_atomic(args.json, text)
     if args.out is not None:
-        out_set = replace(diag.params_out, name=args.out.stem, path=None)
-        save_parameters(out_set, args.out)
         print(f"parameters written to {args.out}")
-    report_dir = args.report or (
-        args.out.parent if args.out is not None else Path("diagnosis_report")
-    )
-    prefix = f"{args.out.stem}_" if args.out is not None else ""
-    report = write_report(diag, Path(report_dir) / f"{prefix}diagnosis.md", args.out)
-    print(f"report written to {report}")
-    if not args.no_recording:
-        path = args.recording or Path(report_dir) / f"{prefix}residuals.rrd"
-        write_recording(diag, path)
-        print(f"recording written to {path}  (open it with: rerun {path})")
-    if args.json is not None:
-        write_text_atomic(args.json, json.dumps(result, indent=2, default=_json_default) + "\n")
+    print(f"report written to {report_path}")
+    if recording is not None:
+        print(f"recording written to {recording}  (open it with: rerun {recording})")
+    if args.json is not None and not is_stdout(args.json):
         print(f"result written to {args.json}")
     return 0
 

@@ -10,9 +10,11 @@ from isp_twin.experiment import (
     GYRO_NOISE_DEG_S,
     PAPER_SET,
     RESOLVER_LSB_DEG,
+    check_excitation,
     generate_openloop,
 )
 from isp_twin.measured import save_measured
+from isp_twin.outputs import check_folder, check_outputs, transaction
 from isp_twin.parameters import AXES, load_parameters
 from isp_twin.resources import default_parameters_path
 
@@ -50,7 +52,7 @@ def add_parser(sub) -> None:
 def execute(args) -> int:
     if args.reference or args.effect is not None:
         return execute_reference(args)
-    params = load_parameters(args.params or default_parameters_path())
+    params_path = args.params or default_parameters_path()
     if args.which == "paper":
         runs = [
             (
@@ -65,6 +67,22 @@ def execute(args) -> int:
         ]
     else:
         runs = [(args.amplitude, args.freq, args.offset, args.samples, args.initial_angle, "eq7")]
+    for amp, freq, off, n, y0, _ in runs:
+        check_excitation(
+            amplitude_digits=amp,
+            freq_hz=freq,
+            offset_digits=off,
+            n_samples=n,
+            initial_angle_deg=y0,
+            gyro_noise_deg_s=args.gyro_noise,
+            resolver_lsb_deg=args.resolver_lsb,
+            seed=args.seed,
+        )
+    check_folder("--out", args.out)
+    paths = {f"--out {name}.csv": args.out / f"{name}.csv" for *_, name in runs}
+    check_outputs(paths, inputs=[params_path])
+    params = load_parameters(params_path)
+    generated = []
     for i, (amp, freq, off, n, y0, name) in enumerate(runs):
         data = generate_openloop(
             params,
@@ -81,7 +99,11 @@ def execute(args) -> int:
             initial_angle_deg=y0,
             name=name,
         )
-        path = save_measured(data, args.out / f"{name}.csv")
-        if not args.quiet:
+        generated.append((data, args.out / f"{name}.csv"))
+    with transaction():
+        for data, path in generated:
+            save_measured(data, path)
+    if not args.quiet:
+        for data, path in generated:
             print(f"wrote {path} ({len(data)} samples)")
     return 0

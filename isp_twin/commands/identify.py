@@ -3,16 +3,22 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.atomic import write_text_atomic
-from isp_twin.commands.data_options import add_data_options, mapping_from_args
-from isp_twin.errors import DataError
+from isp_twin.commands.data_options import (
+    add_data_options,
+    check_initial_angle,
+    mapping_from_args,
+)
+from isp_twin.errors import ParameterError
 from isp_twin.identification import SIDES, Settings, identify, to_axis_params
 from isp_twin.identification_report import identification_verdict, result_json, write_report
-from isp_twin.measured import load_measured
+from isp_twin.measured import check_sample_period, load_measured, unique_names
+from isp_twin.outputs import check_outputs, transaction
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG
@@ -81,17 +87,39 @@ def add_parser(sub) -> None:
 
 
 def execute(args) -> int:
+    if args.generations < 0:
+        raise ParameterError(f"--generations must be >= 0, got {args.generations}")
+    for option, value in (
+        ("--population", args.population),
+        ("--refine-evaluations", args.refine_evaluations),
+        ("--min-regime-samples", args.min_regime_samples),
+    ):
+        if value < 1:
+            raise ParameterError(f"{option} must be >= 1, got {value}")
+    if args.seed < 0:
+        raise ParameterError(f"--seed must be >= 0, got {args.seed}")
+    if not math.isfinite(args.rest_rate) or args.rest_rate < 0:
+        raise ParameterError(f"--rest-rate must be a finite number >= 0, got {args.rest_rate}")
+    check_initial_angle(args)
+    prior_path = args.prior or default_parameters_path()
+    inputs = [*args.data, *args.validate, prior_path, *([args.describe] if args.describe else [])]
+    check_outputs({"--out": args.out}, inputs)  # the report's default name derives from it
+    report = None
+    if not args.no_report:
+        report = args.report or args.out.with_name(f"{args.out.stem}_report.md")
+    check_outputs({"--out": args.out, "--report": report, "--json": args.json}, inputs)
+
     mapping = mapping_from_args(args)
-    train = [load_measured(p, mapping) for p in args.data]
-    validation = [load_measured(p, mapping) for p in args.validate]
-    prior_set = load_parameters(args.prior or default_parameters_path())
+    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.validate]])
+    train, validation = runs[: len(args.data)], runs[len(args.data) :]
+    prior_set = load_parameters(prior_path)
     prior = prior_set.axis(args.axis)
-    for d in train + validation:
-        if abs(d.dt - prior_set.sample_time_s) > 0.01 * prior_set.sample_time_s:
-            raise DataError(
-                f"{d.source}: sample period {d.dt:.6g} s, but the parameters are per sample of "
-                f"{prior_set.sample_time_s:.6g} s ({prior_set.path or prior_set.name}); resample the data"
-            )
+    periods = check_sample_period(
+        train + validation, prior_set.sample_time_s, str(prior_set.path or prior_set.name)
+    )
+    if not args.quiet:
+        for line in periods:
+            print(line)
     settings = Settings(
         seed=args.seed,
         generations=args.generations,
@@ -133,14 +161,16 @@ def execute(args) -> int:
         f"other axes from {prior_set.name}",
         path=None,
     )
-    save_parameters(out_set, args.out)
-    if not args.no_report:
-        report = args.report or args.out.with_name(f"{args.out.stem}_report.md")
-        write_report(report, result, args.axis, axis_params, train, validation, args.out)
     summary = result_json(result, args.axis, axis_params, validation, train)
     verdict = identification_verdict(result, train, validation)
-    if args.json is not None:
-        write_text_atomic(args.json, json.dumps(summary, indent=2) + "\n")
+    summary["sample_period_s"] = {d.name: d.dt for d in train + validation}
+    summary.setdefault("units", {})["sample_period_s"] = "s"
+    with transaction():
+        save_parameters(out_set, args.out)
+        if report is not None:
+            write_report(report, result, args.axis, axis_params, train, validation, args.out)
+        if args.json is not None:
+            write_text_atomic(args.json, json.dumps(summary, indent=2) + "\n")
     if not args.quiet:
         visited = [r for r, ok in zip(summary["regime_identified"], result.regime_identified) if ok]
         print(f"identified {args.axis} regimes {', '.join(visited) or 'none'} -> {args.out}")

@@ -11,12 +11,29 @@ import numpy as np
 
 from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import ScenarioError
+from isp_twin.outputs import check_outputs, is_stdout, transaction
 from isp_twin.parameters import load_parameters
 from isp_twin.resources import find_scenario
 from isp_twin.results import RunResult
 from isp_twin.units import DEG
 
-__all__ = ["add_parser", "execute"]
+__all__ = ["add_parser", "execute", "CLOSED_LOOP_UNITS", "OPEN_LOOP_UNITS"]
+
+#: Units of the numbers in the JSON of a closed-loop run (metrics per axis).
+CLOSED_LOOP_UNITS = {
+    "isolation_percent": "% (Eq. 10)",
+    "max_abs_error_deg_s": "deg/s",
+    "rms_error_deg_s": "deg/s",
+    "seed": "1",
+}
+#: Units of the numbers in the JSON of an open-loop run.
+OPEN_LOOP_UNITS = {
+    "peak_deg_s": "deg/s",
+    "peak_positive_deg_s": "deg/s",
+    "peak_negative_deg_s": "deg/s",
+    "dead_zones_ms": "ms",
+    "mean_dead_zone_ms": "ms",
+}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -70,13 +87,36 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def execute(args: argparse.Namespace) -> int:
     from isp_twin.scenario import load_scenario
 
+    if args.no_recording and (args.spawn or args.connect is not None):
+        flag = "--spawn" if args.spawn else "--connect"
+        raise ScenarioError(f"{flag} streams the recording; it cannot go with --no-recording")
     scenario = load_scenario(find_scenario(args.scenario))
+    if scenario.kind == "closed_loop" and args.engine == "fast":
+        raise ScenarioError(
+            f"{scenario.source}: --engine fast: the fast model is open-loop only; "
+            "closed-loop scenarios run on the MuJoCo twin (drop --engine)"
+        )
     params_path = args.params or scenario.parameters_path
     params = load_parameters(params_path)
     seed = scenario.seed if args.seed is None else args.seed
     if seed < 0:
         raise ScenarioError(f"--seed must be >= 0, got {seed}")
     name = scenario.name or Path(scenario.source or args.scenario).stem
+    recording = None
+    if not args.no_recording:
+        from isp_twin.recording import default_recording_path
+
+        recording = args.recording or default_recording_path(name)
+    check_outputs(
+        {"--json": args.json, "--recording": recording},
+        inputs=[scenario.source, params_path],
+    )
+    # The simulator (MuJoCo) is imported before the header: once it is printed
+    # the run starts at once (and Ctrl-C from then on keeps what ran).
+    if scenario.kind == "closed_loop":
+        import isp_twin.closed_loop  # noqa: F401
+    elif args.engine == "twin":
+        import isp_twin.twin  # noqa: F401
     print(f"scenario {name}  ({scenario.source})")
     print(f"parameters {params_path}  seed {seed}")
 
@@ -84,18 +124,22 @@ def execute(args: argparse.Namespace) -> int:
         result, payload = _run_open_loop(scenario, params, params_path, name, seed, args.engine)
     else:
         result, payload = _run_closed_loop(scenario, params, params_path, name, seed)
+    # A run stopped by Ctrl-C still writes what it has, and says so.
+    payload["interrupted"] = result.interrupted
 
-    if args.json is not None:
-        write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
+    with transaction():
+        if args.json is not None:
+            write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
+        if recording is not None:
+            from isp_twin.recording import record_run
+
+            record_run(result, recording, spawn=args.spawn, connect=args.connect)
+    if args.json is not None and not is_stdout(args.json):
         print(f"metrics written to {args.json}")
-    if not args.no_recording:
-        from isp_twin.recording import default_recording_path, record_run
-
-        path = args.recording or default_recording_path(name)
-        record_run(result, path, spawn=args.spawn, connect=args.connect)
-        print(f"recording written to {path}  (open it with: rerun {path})")
+    if recording is not None:
+        print(f"recording written to {recording}  (open it with: rerun {recording})")
     if result.interrupted:
-        print("interrupted: the recording holds the run up to the interruption", file=sys.stderr)
+        print("interrupted: the outputs hold the run up to the interruption", file=sys.stderr)
         return 130
     return 0
 
@@ -119,6 +163,7 @@ def _run_closed_loop(scenario, params, params_path, name, seed):
         "parameters_file": str(params_path),
         "seed": seed,
         "metrics": metrics,
+        "units": CLOSED_LOOP_UNITS,
     }
     return result, payload
 
@@ -168,6 +213,7 @@ def _run_open_loop(scenario, params, params_path, name, seed, engine):
         },
         joint_angles={ol.axis: response.angle},
         metrics=_json_ready(figures.as_dict()),
+        view_start_s=skip,
     )
     payload = {
         "scenario": name,
@@ -175,6 +221,7 @@ def _run_open_loop(scenario, params, params_path, name, seed, engine):
         "seed": seed,
         "engine": engine,
         "open_loop": result.metrics,
+        "units": OPEN_LOOP_UNITS,
     }
     return result, payload
 

@@ -27,7 +27,7 @@ from isp_twin.diagnosis.simulation import RunStack, predict
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.effects import EFFECTS
 from isp_twin.errors import DataError, ParameterError, nearest
-from isp_twin.measured import MeasuredData
+from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
 from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
 
 __all__ = ["LIBRARY", "Diagnosis", "RoundResult", "diagnose", "split_in_time"]
@@ -264,7 +264,7 @@ def diagnose(
         raise DataError("diagnose: no data sets given")
     ax: AxisParams = params.axis(axis)
     for r in runs + holdout:
-        if abs(r.dt - params.sample_time_s) > 1e-9 * params.sample_time_s:
+        if abs(r.dt - params.sample_time_s) > SAMPLE_PERIOD_TOLERANCE * params.sample_time_s:
             raise DataError(
                 f"{r.source or r.name}: sample period {r.dt:g} s, but the parameter file "
                 f"{params.path or params.name} is for {params.sample_time_s:g} s"

@@ -15,6 +15,7 @@ import numpy as np
 from isp_twin.axis_model import simulate
 from isp_twin.effects.batched import make_batched
 from isp_twin.errors import DataError
+from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE
 from isp_twin.parameters import EffectSpec, RateParams
 
 __all__ = ["WARMUP", "RunStack", "predict", "residuals", "residuals_many", "stack_runs"]
@@ -71,7 +72,7 @@ def stack_runs(runs: Sequence, warmup: int = WARMUP, side: float | None = None) 
         raise DataError("diagnosis: no data sets given")
     dt = float(runs[0].dt)
     for r in runs:
-        if abs(float(r.dt) - dt) > 1e-9 * dt:
+        if abs(float(r.dt) - dt) > SAMPLE_PERIOD_TOLERANCE * dt:
             raise DataError(
                 f"{r.name}: sample period {r.dt} s differs from {runs[0].name}'s {dt} s; "
                 "all data sets of one diagnosis need the same period"
