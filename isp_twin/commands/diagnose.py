@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import builtins
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -46,9 +47,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--side",
         default="measured",
-        choices=("measured", "right", "left"),
-        help="half-plane of the regimes: from the measured angle (the paper's rule), "
-        "or fixed (a freely spinning motor)",
+        choices=("measured", "raw", "right", "left"),
+        help="half-plane of the regimes: measured (the angle fused with the integrated rate, "
+        "as identify; the raw angle if that fits the starting model better), raw (the angle "
+        "as measured), or fixed (a freely spinning motor)",
     )
     p.add_argument("--max-rounds", type=int, default=2, help="at most this many effects are added")
     p.add_argument(
@@ -75,6 +77,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="Rerun recording of the residuals (default: REPORT_DIR/residuals.rrd)",
     )
     p.add_argument("--no-recording", action="store_true", help="do not write a Rerun recording")
+    p.add_argument("--seed", type=int, default=0, help="seed of the base model's global search")
+    p.add_argument(
+        "--base-search",
+        action="store_true",
+        help="fit the base model with identify's global method first (and the winner again "
+        "with its effect held) instead of starting from the file's rate parameters",
+    )
+    p.add_argument("--quiet", action="store_true", help="print only the verdict line")
     p.set_defaults(execute=execute)
 
 
@@ -102,8 +112,14 @@ def execute(args: argparse.Namespace) -> int:
         max_rounds=args.max_rounds,
         max_iter=args.iterations,
         side=args.side,
+        seed=args.seed,
+        base_search=args.base_search,
     )
     result = diag.to_json()
+
+    def print(*a, **k):  # noqa: A001 (--quiet silences the chatter, not the verdict)
+        if not args.quiet:
+            builtins.print(*a, **k)
 
     print(
         f"diagnosis of {args.axis} on {len(train)} run(s); held out: {', '.join(diag.holdout_names)}"
@@ -126,6 +142,12 @@ def execute(args: argparse.Namespace) -> int:
         f"held-out RMS error: before {diag.rmse_before / DEG:.4g} deg/s, after {diag.rmse_after / DEG:.4g} deg/s, "
         f"noise floor {diag.noise_floor / DEG:.4g} deg/s"
     )
+    if diag.tentative:
+        print(
+            f"tentative (not adopted): {', '.join(diag.tentative)} passed the acceptance rule "
+            "but left the held-out error above the noise"
+        )
+    builtins.print(result["verdict"])
     if diag.selected_effect == "none":
         print("no missing effect found")
         if result["refit_adopted"]:
@@ -149,7 +171,9 @@ def execute(args: argparse.Namespace) -> int:
         write_recording(diag, path)
         print(f"recording written to {path}  (open it with: rerun {path})")
     if args.json is not None:
-        write_text_atomic(args.json, json.dumps(result, indent=2, default=_json_default) + "\n")
+        write_text_atomic(
+            args.json, json.dumps(result, indent=2, default=_json_default, allow_nan=False) + "\n"
+        )
         print(f"result written to {args.json}")
     return 0
 
