@@ -778,7 +778,7 @@ def identify(
     z_best = candidates[0][1]
     best_cost = float(z_cost(z_best[None])[0])
     status_parts = []
-    for label, z in candidates:
+    for _label, z in candidates:
         c = float(z_cost(z[None])[0])
         if c < best_cost:
             z_best, best_cost = z, c

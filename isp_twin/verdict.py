@@ -18,7 +18,7 @@ import numpy as np
 
 from isp_twin.units import DEG
 
-__all__ = ["CONVERGED_RATIO", "FitVerdict", "fit_verdict", "noise_floor_of"]
+__all__ = ["CONVERGED_RATIO", "FitVerdict", "fit_verdict", "json_safe", "noise_floor_of"]
 
 #: Largest RMS error, in noise floors, of a fit called converged.
 CONVERGED_RATIO = 1.5
@@ -116,3 +116,18 @@ def fit_verdict(
     return FitVerdict(
         dict(rmse), dict(noise_floor), tuple(held_out), converged, "" if converged else advice
     )
+
+
+def json_safe(obj):
+    """A copy of a JSON-able structure with NaN and infinities as null (JSON has neither)."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    return obj

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import builtins
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -52,9 +53,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--side",
         default="measured",
-        choices=("measured", "right", "left"),
-        help="half-plane of the regimes: from the measured angle (the paper's rule), "
-        "or fixed (a freely spinning motor)",
+        choices=("measured", "raw", "right", "left"),
+        help="half-plane of the regimes: measured (the angle fused with the integrated rate, "
+        "as identify; the raw angle if that fits the starting model better), raw (the angle "
+        "as measured), or fixed (a freely spinning motor)",
     )
     p.add_argument("--max-rounds", type=int, default=2, help="at most this many effects are added")
     p.add_argument(
@@ -81,6 +83,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="Rerun recording of the residuals (default: REPORT_DIR/residuals.rrd)",
     )
     p.add_argument("--no-recording", action="store_true", help="do not write a Rerun recording")
+    p.add_argument("--seed", type=int, default=0, help="seed of the base model's global search")
+    p.add_argument(
+        "--base-search",
+        action="store_true",
+        help="fit the base model with identify's global method first (and the winner again "
+        "with its effect held) instead of starting from the file's rate parameters",
+    )
+    p.add_argument("--quiet", action="store_true", help="print only the verdict line")
     p.set_defaults(execute=execute)
 
 
@@ -131,36 +141,48 @@ def execute(args: argparse.Namespace) -> int:
             max_rounds=args.max_rounds,
             max_iter=args.iterations,
             side=args.side,
+            seed=args.seed,
+            base_search=args.base_search,
         )
     result = diag.to_json()
     result["sample_period_s"] = {d.name: d.dt for d in runs}
     result.setdefault("units", {})["sample_period_s"] = "s"
 
-    print(
+    def say(*a, **k):  # --quiet silences the chatter, not the verdict
+        if not args.quiet:
+            builtins.print(*a, **k)
+
+    say(
         f"diagnosis of {args.axis} on {len(train)} run(s); held out: {', '.join(diag.holdout_names)}"
     )
     for i, r in enumerate(diag.rounds, 1):
-        print(
+        say(
             f"round {i}: {'no missing effect found' if r.selected == 'none' else 'selected ' + r.selected}"
         )
-        print(f"  {'candidate':<14} {'held-out RMS':>13} {'z':>7} {'dBIC':>10}  verdict")
+        say(f"  {'candidate':<14} {'held-out RMS':>13} {'z':>7} {'dBIC':>10}  verdict")
         for v in r.verdicts:
-            print(
+            say(
                 f"  {v.name:<14} {v.holdout_rmse / DEG:>9.4g} deg/s {v.improvement_z:>7.2f} "
                 f"{v.delta_bic:>10.1f}  {'ACCEPT ' if v.significant else ''}{v.reason}"
             )
     for fit in diag.accepted:
-        print(f"{fit.name}:")
+        say(f"{fit.name}:")
         for k, v in fit.params.items():
-            print(f"  {k} = {v:.6g} ± {fit.ci95[k]:.3g}")
-    print(
+            say(f"  {k} = {v:.6g} ± {fit.ci95[k]:.3g}")
+    say(
         f"held-out RMS error: before {diag.rmse_before / DEG:.4g} deg/s, after {diag.rmse_after / DEG:.4g} deg/s, "
         f"noise floor {diag.noise_floor / DEG:.4g} deg/s"
     )
+    if diag.tentative:
+        say(
+            f"tentative (not adopted): {', '.join(diag.tentative)} passed the acceptance rule "
+            "but left the held-out error above the noise"
+        )
+    builtins.print(result["verdict"])
     if diag.selected_effect == "none":
-        print("no missing effect found")
+        say("no missing effect found")
         if result["refit_adopted"]:
-            print(
+            say(
                 "(the parameters re-identified without a new effect fit significantly better: "
                 "they are the ones written)"
             )
@@ -173,15 +195,15 @@ def execute(args: argparse.Namespace) -> int:
         if recording is not None:
             write_recording(diag, recording)
         if args.json is not None:
-            text = json.dumps(result, indent=2, default=_json_default) + "\n"
+            text = json.dumps(result, indent=2, default=_json_default, allow_nan=False) + "\n"
             write_text_atomic(args.json, text)
     if args.out is not None:
-        print(f"parameters written to {args.out}")
-    print(f"report written to {report_path}")
+        say(f"parameters written to {args.out}")
+    say(f"report written to {report_path}")
     if recording is not None:
-        print(f"recording written to {recording}  (open it with: rerun {recording})")
+        say(f"recording written to {recording}  (open it with: rerun {recording})")
     if args.json is not None and not is_stdout(args.json):
-        print(f"result written to {args.json}")
+        say(f"result written to {args.json}")
     return 0
 
 

@@ -24,11 +24,16 @@ from isp_twin.diagnosis.candidates import (
 from isp_twin.diagnosis.residual import ResidualAnalysis, analyse, noise_floor, residual_context
 from isp_twin.diagnosis.selection import Verdict, judge, select
 from isp_twin.diagnosis.simulation import RunStack, predict
+from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.effects import EFFECTS
 from isp_twin.errors import DataError, ParameterError, nearest
+from isp_twin.identification import Settings as IdSettings
+from isp_twin.identification import Timing, identify, side_angle
 from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
 from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
+from isp_twin.units import DEG
+from isp_twin.verdict import CONVERGED_RATIO, json_safe
 
 __all__ = ["LIBRARY", "Diagnosis", "RoundResult", "diagnose", "split_in_time"]
 
@@ -96,6 +101,11 @@ class Diagnosis:
         holdout_names: the held-out runs (or "cross-validation").
         refit: the re-identification without a new effect judged against the
             given parameters.
+        tentative: effects that passed the acceptance rule but left the
+            held-out error above `CONVERGED_RATIO` noise floors: not adopted
+            (an effect that does not bring the model to the noise may be
+            standing in for a base model that does not fit).
+        timing: the data's read-out timing found by the base model's fit.
     """
 
     axis: str
@@ -111,6 +121,8 @@ class Diagnosis:
     holdout_names: tuple[str, ...] = ()
     refit: Verdict | None = None
     stack: RunStack | None = field(default=None, repr=False)
+    tentative: tuple[str, ...] = ()
+    timing: Timing = Timing()
 
     @property
     def accepted(self) -> tuple[CandidateFit, ...]:
@@ -126,39 +138,73 @@ class Diagnosis:
         """The ``--json`` record (see docs/diagnosis.md)."""
         acc = self.accepted
         first = self.rounds[0]
-        return {
-            "axis": self.axis,
-            "selected_effect": self.selected_effect,
-            "effect_parameters": dict(acc[0].params) if acc else {},
-            "effect_ci95": dict(acc[0].ci95) if acc else {},
-            "all_selected": [
-                {"name": f.name, "parameters": dict(f.params), "ci95": dict(f.ci95)} for f in acc
-            ],
-            "rmse_before": self.rmse_before,
-            "rmse_baseline_refit": float(_rms(first.holdout_before)),
-            "rmse_after": self.rmse_after,
-            "refit_adopted": bool(not acc and self.refit is not None and self.refit.significant),
-            "noise_floor": self.noise_floor,
-            "holdout": list(self.holdout_names),
-            "ranking": [
-                {
-                    "name": v.name,
-                    "holdout_rmse": v.holdout_rmse,
-                    "improvement_z": v.improvement_z,
-                    "delta_bic": v.delta_bic,
-                    "significant": v.significant,
-                    "reason": v.reason,
-                    "parameters": dict(first.fits[v.name].params),
-                }
-                for v in first.verdicts
-            ],
-            "rounds": [
-                {"selected": r.selected, "ranking": [v.name for v in r.verdicts]}
-                for r in self.rounds
-            ],
-            "analysis_before": self.analysis_before.summary(),
-            "analysis_after": self.analysis_after.summary(),
-        }
+        ratio = self.rmse_after / self.noise_floor if self.noise_floor > 0 else float("inf")
+        converged = bool(ratio <= CONVERGED_RATIO)
+        return json_safe(
+            {
+                "axis": self.axis,
+                "converged": converged,
+                "rmse_over_noise_floor": ratio,
+                "verdict": (
+                    f"held-out RMS error {ratio:.2f} x the noise floor: "
+                    + (
+                        "the model is at the noise"
+                        if converged
+                        else "NOT CONVERGED: the model has not converged or lacks an effect the "
+                        "library does not have (try more --iterations, other runs, or a new effect)"
+                    )
+                ),
+                "tentative_effects": list(self.tentative),
+                "timing": {
+                    "gyro_average": self.timing.gyro_average,
+                    "side_shift_samples": self.timing.side_shift,
+                },
+                "units": {
+                    "rmse_before": "rad/s",
+                    "rmse_baseline_refit": "rad/s",
+                    "rmse_after": "rad/s",
+                    "noise_floor": "rad/s",
+                    "holdout_rmse": "rad/s",
+                    "effect_parameters": "SI, unit in the parameter name",
+                },
+                "rmse_before_deg_s": self.rmse_before / DEG,
+                "rmse_after_deg_s": self.rmse_after / DEG,
+                "noise_floor_deg_s": self.noise_floor / DEG,
+                "selected_effect": self.selected_effect,
+                "effect_parameters": dict(acc[0].params) if acc else {},
+                "effect_ci95": dict(acc[0].ci95) if acc else {},
+                "all_selected": [
+                    {"name": f.name, "parameters": dict(f.params), "ci95": dict(f.ci95)}
+                    for f in acc
+                ],
+                "rmse_before": self.rmse_before,
+                "rmse_baseline_refit": float(_rms(first.holdout_before)),
+                "rmse_after": self.rmse_after,
+                "refit_adopted": bool(
+                    not acc and self.refit is not None and self.refit.significant
+                ),
+                "noise_floor": self.noise_floor,
+                "holdout": list(self.holdout_names),
+                "ranking": [
+                    {
+                        "name": v.name,
+                        "holdout_rmse": v.holdout_rmse,
+                        "improvement_z": v.improvement_z,
+                        "delta_bic": v.delta_bic,
+                        "significant": v.significant,
+                        "reason": v.reason,
+                        "parameters": dict(first.fits[v.name].params),
+                    }
+                    for v in first.verdicts
+                ],
+                "rounds": [
+                    {"selected": r.selected, "ranking": [v.name for v in r.verdicts]}
+                    for r in self.rounds
+                ],
+                "analysis_before": self.analysis_before.summary(),
+                "analysis_after": self.analysis_after.summary(),
+            }
+        )
 
 
 def _rms(parts) -> float:
@@ -189,13 +235,15 @@ def split_in_time(run) -> tuple[MeasuredData, MeasuredData]:
 
 
 def _cv_residuals(
-    runs, fits: Sequence[CandidateFit], max_iter: int, side=None
+    runs, fits: Sequence[CandidateFit], max_iter: int, side=None, gyro_average: bool = False
 ) -> list[list[np.ndarray]]:
     """Leave-one-run-out residuals of each fit; every fold refits all of them
     in lockstep, warm-started from their all-run fits."""
     out: list[list[np.ndarray]] = [[] for _ in fits]
     for k in range(len(runs)):
-        train = _stack_runs([r for i, r in enumerate(runs) if i != k], side=side)
+        train = _stack_runs(
+            [r for i, r in enumerate(runs) if i != k], side=side, gyro_average=gyro_average
+        )
         folds = fit_candidates(
             train,
             fits[0].rate_vector,
@@ -207,7 +255,10 @@ def _cv_residuals(
             # The all-run fits were polished already; a fold only adjusts.
             polish=False,
         )
-        held = holdout_residuals(_stack_runs([runs[k]], side=side), [folds[f.name] for f in fits])
+        held = holdout_residuals(
+            _stack_runs([runs[k]], side=side, gyro_average=gyro_average),
+            [folds[f.name] for f in fits],
+        )
         for i, parts in enumerate(held):
             out[i].extend(parts)
     return out
@@ -223,6 +274,8 @@ def diagnose(
     max_iter: int = DEFAULT_ITERATIONS,
     cv_iter: int = 2,
     side: str = "measured",
+    seed: int = 0,
+    base_search: bool = False,
 ) -> Diagnosis:
     """Diagnose what the model of one axis misses in measured open-loop runs.
 
@@ -240,9 +293,21 @@ def diagnose(
             force trades against the friction levels and can need more than
             6, docs/diagnosis.md "Effect-only polish").
         cv_iter: iterations per cross-validation fold (warm-started).
-        side: half-plane of the regimes: ``measured`` (sign of the measured
-            angle, the paper's rule), ``right`` or ``left`` (fixed: a motor
-            that spins freely, where the split means nothing).
+        side: half-plane of the regimes: ``measured`` (the measured angle
+            fused with the integrated rate, read at the time `identify` finds
+            for the data: `isp_twin.identification.side_angle`), ``right`` or
+            ``left`` (fixed: a motor that spins freely, where the split means
+            nothing).
+        seed: seed of the base model's global search.
+        base_search: fit the base model (no new effect) with the global
+            method of `isp_twin.identification.identify` before the rounds
+            (and refit the winner the same way with its effect held), so
+            that no effect is asked to explain a base model the optimizer
+            left short of its best; False (default): start from the file,
+            which `isp-twin identify` wrote with that same global method.
+            Opt-in: it costs an identification per round, and an effect
+            that trades against the friction levels (a dead zone) can be
+            absorbed by the base fit (docs/diagnosis.md).
 
     Raises:
         DataError: no runs, or a sample period that differs from the set's.
@@ -250,15 +315,12 @@ def diagnose(
     """
     runs = list(runs)
     holdout = list(holdout)
-    sides = {"measured": None, "right": 1.0, "left": -1.0}
+    sides = {"measured": None, "raw": None, "right": 1.0, "left": -1.0}
     if side not in sides:
         raise ParameterError(
             f"diagnose: side '{side}'{nearest(side, sides)}; allowed: {', '.join(sides)}"
         )
     fixed_side = sides[side]
-
-    def stack_runs(rs):
-        return _stack_runs(rs, side=fixed_side)
 
     if not runs:
         raise DataError("diagnose: no data sets given")
@@ -279,6 +341,43 @@ def diagnose(
             )
     if not holdout and len(runs) == 1:
         runs = list(split_in_time(runs[0]))
+    base_id = None
+    timing = Timing()
+    raw_runs = list(runs)
+    if base_search:
+        base_id = identify(runs, ax, IdSettings(side=side, seed=seed))
+        timing = base_id.timing
+    if side == "measured":
+        # The half-plane and the angle-dependent effects see the fused angle
+        # (resolver quantization steps would flip the regime back and forth
+        # at angle 0), read at the data's timing, unless the raw angle fits
+        # the starting model better: a gyro scale or bias error (the
+        # sensor_bias effect) enters the integrated rate the fusion trusts
+        # at short times and moves its zero crossings.
+        fused = [replace(r, angle=side_angle(r, "measured", timing.side_shift)) for r in runs]
+        x_start = base_id.vector if base_id is not None else ax.rate_params().to_vector()
+        costs = [
+            float(
+                np.sum(
+                    _simulation_residuals(
+                        _stack_runs(rs, side=None, gyro_average=timing.gyro_average),
+                        x_start,
+                        tuple(ax.effects),
+                    )
+                    ** 2
+                )
+            )
+            for rs in (fused, runs)
+        ]
+        if costs[0] <= costs[1]:
+            runs = fused
+            holdout = [
+                replace(r, angle=side_angle(r, "measured", timing.side_shift)) for r in holdout
+            ]
+
+    def stack_runs(rs):
+        return _stack_runs(rs, side=fixed_side, gyro_average=timing.gyro_average)
+
     train = stack_runs(runs)
     held = stack_runs(holdout) if holdout else None
     holdout_names = (
@@ -290,7 +389,7 @@ def diagnose(
     def held_residuals(fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
         if held is not None:
             return holdout_residuals(held, fits)
-        return _cv_residuals(runs, fits, cv_iter, fixed_side)
+        return _cv_residuals(runs, fits, cv_iter, fixed_side, timing.gyro_average)
 
     x_file = ax.rate_params().to_vector()
     fixed = tuple(ax.effects)
@@ -304,7 +403,7 @@ def diagnose(
     analysis_before = analyse(train, _one(predict(train, x_file[None], (), fixed)))
 
     rounds = []
-    x_current = x_file
+    x_current = base_id.vector if base_id is not None else x_file
     current: CandidateFit | None = None
     remaining = list(candidates)
     for _ in range(max_rounds):
@@ -313,6 +412,14 @@ def diagnose(
         names = remaining + ([BASELINE] if current is None else [])
         fits = fit_candidates(train, x_current, names, fixed, context=context, max_iter=max_iter)
         base = fits.pop(BASELINE) if current is None else current
+        # A model that contains the base model cannot fit the training runs
+        # worse: a candidate that ends above the base is an optimizer
+        # failure, and is replaced by the base with the effect switched off.
+        failed = set()
+        for n in remaining:
+            if fits[n].sse > base.sse:
+                fits[n] = _as_base(fits[n], base)
+                failed.add(n)
         order = [base] + [fits[n] for n in remaining]
         held_all = held_residuals(order)
         base_held = held_all[0]
@@ -321,10 +428,21 @@ def diagnose(
             judge(n, base_held, h, base.bic, fits[n].bic, floor)
             for n, h in zip(remaining, held_all[1:])
         ]
+        verdicts = [_checked(v, fits[v.name], v.name in failed) for v in verdicts]
         verdicts.sort(key=lambda v: v.holdout_rmse)
         best = select(verdicts, floor)
         selected = best.name if best else BASELINE
         after_held = held_all[1 + remaining.index(selected)] if best else base_held
+        if best is not None and base_search:
+            # The winner refitted with the base model's global method, its
+            # effect held, then jointly polished: the base it was selected
+            # against had absorbed part of the effect into the friction levels.
+            again = _refit_globally(
+                raw_runs, ax, fits[selected], train, seed, side, timing, max_iter
+            )
+            if again.sse < fits[selected].sse:
+                fits[selected] = again
+                after_held = held_residuals([again])[0]
         rounds.append(
             RoundResult(
                 base, fits, tuple(verdicts), selected, tuple(base_held), tuple(after_held), floor
@@ -340,6 +458,16 @@ def diagnose(
             break
 
     accepted = [r for r in rounds if r.selected != BASELINE]
+    tentative: tuple[str, ...] = ()
+    if accepted:
+        ratio = _rms(accepted[-1].holdout_after) / rounds[0].noise_floor
+        if not ratio <= CONVERGED_RATIO:
+            # With the effect the model is still not at the noise: the effect
+            # may be standing in for a base model the data do not fit. Not
+            # an explanation; reported as tentative only.
+            tentative = tuple(r.selected for r in accepted)
+            rounds = [replace(r, selected=BASELINE, holdout_after=r.holdout_before) for r in rounds]
+            accepted = []
     m = train.n_samples
     given_res = train.flat(
         train.omega - _one(predict(train, x_file[None], (), tuple(ax.effects))).omega
@@ -387,7 +515,80 @@ def diagnose(
         holdout_names=holdout_names,
         refit=refit,
         stack=train,
+        tentative=tentative,
+        timing=timing,
     )
+
+
+def _refit_globally(raw_runs, ax, fit, train, seed, side, timing, max_iter) -> CandidateFit:
+    """`fit`'s rate parameters identified again with its effects held (`identify`),
+    then rate and effect parameters polished together."""
+    held_ax = replace(ax, effects=fit.effects())
+    again = identify(raw_runs, held_ax, IdSettings(side=side, seed=seed, timing=timing))
+    return fit_candidates(
+        train,
+        again.vector,
+        [fit.name],
+        fit.fixed,
+        starts={fit.name: dict(fit.params)},
+        max_iter=max_iter,
+    )[fit.name]
+
+
+def _as_base(fit: CandidateFit, base: CandidateFit) -> CandidateFit:
+    """The base model written as `fit`'s candidate with its effect off (null parameters)."""
+    null = dict(EFFECTS[fit.name].null)
+    return replace(
+        fit,
+        params={p: float(null[p]) for p in fit.params},
+        ci95={p: float("nan") for p in fit.params},
+        rate_vector=base.rate_vector.copy(),
+        rate_ci95=base.rate_ci95.copy(),
+        sse=base.sse,
+        bic=base.bic + (fit.n_params - base.n_params) * np.log(max(base.n_samples, 2)),
+    )
+
+
+#: Effect parameters whose cost is a staircase (no meaningful Jacobian interval).
+THRESHOLD_PARAMS = frozenset({"width_digits", "limit_digits", "delay_s"})
+
+
+def _determined(fit: CandidateFit) -> tuple[bool, str]:
+    """Whether the data determine the effect: every free parameter has a finite
+    interval, and at least one strength parameter (null value 0 or inf) is
+    farther from its null than its 95 % half-width."""
+    cls = EFFECTS[fit.name]
+    frozen = set(getattr(cls, "frozen", ()))
+    # Thresholds (a dead-zone width, a saturation limit, a delay) change the
+    # cost in steps: a finite-difference interval says nothing about them,
+    # and their held-out gain is the evidence.
+    free = [p for p in cls.param_names if p not in frozen and p not in THRESHOLD_PARAMS]
+    undefined = [p for p in free if not np.isfinite(fit.ci95.get(p, np.nan))]
+    if undefined:
+        return False, f"parameters not determined ({', '.join(undefined)}: no finite interval)"
+    strengths = [p for p in free if cls.null[p] == 0.0 or not np.isfinite(cls.null[p])]
+    if not strengths:
+        return True, ""
+    for p in strengths:
+        if abs(fit.params[p] - (0.0 if cls.null[p] == 0.0 else 0.0)) > fit.ci95[p]:
+            return True, ""
+    shown = ", ".join(f"{p} {fit.params[p]:.3g} +- {fit.ci95[p]:.2g}" for p in strengths)
+    return False, f"strength not determined ({shown}: the interval includes no effect)"
+
+
+def _checked(v: Verdict, fit: CandidateFit, failed: bool) -> Verdict:
+    """A verdict overruled when its fit failed or its parameters are not determined."""
+    if failed:
+        return replace(
+            v,
+            significant=False,
+            reason="the refit ended above the base model (an optimizer failure, kept at the base)",
+        )
+    if v.significant:
+        ok, why = _determined(fit)
+        if not ok:
+            return replace(v, significant=False, reason=why)
+    return v
 
 
 def _one(resp):

@@ -35,6 +35,8 @@ class RunStack:
         side: None to pick the half-plane from the measured angle (the
             paper's rule), else a fixed side (+1: R, -1: L) for a freely
             spinning motor.
+        gyro_average: the model's rate is read as a gyro averaging over the
+            sample (`isp_twin.identification.Timing`).
     """
 
     names: tuple[str, ...]
@@ -44,6 +46,7 @@ class RunStack:
     mask: np.ndarray
     dt: float
     side: float | None = None
+    gyro_average: bool = False
 
     @property
     def n_samples(self) -> int:
@@ -61,7 +64,9 @@ class RunStack:
 WARMUP = 50
 
 
-def stack_runs(runs: Sequence, warmup: int = WARMUP, side: float | None = None) -> RunStack:
+def stack_runs(
+    runs: Sequence, warmup: int = WARMUP, side: float | None = None, gyro_average: bool = False
+) -> RunStack:
     """Stack runs (`isp_twin.measured.MeasuredData` or anything with
     ``name, u, omega, angle, dt``).
 
@@ -98,7 +103,7 @@ def stack_runs(runs: Sequence, warmup: int = WARMUP, side: float | None = None) 
             sigma = 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0)
             if abs(w[0]) <= 3.0 * sigma:
                 omega[i, 0] = 0.0
-    return RunStack(tuple(r.name for r in runs), u, omega, angle, mask, dt, side)
+    return RunStack(tuple(r.name for r in runs), u, omega, angle, mask, dt, side, gyro_average)
 
 
 def predict(
@@ -153,8 +158,12 @@ def predict(
             resp.omega_true,
         )
     shape = (p, r, n)
+    omega = resp.omega
+    if stack.gyro_average:
+        omega = omega.copy()
+        omega[:, 1:] = 0.5 * (resp.omega[:, 1:] + resp.omega[:, :-1])
     return type(resp)(
-        resp.omega.reshape(shape),
+        omega.reshape(shape),
         resp.angle.reshape(shape),
         resp.regime.reshape(shape),
         None if resp.omega_true is None else resp.omega_true.reshape(shape),
