@@ -501,22 +501,11 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
 
 
 def load_sweep(path: str | Path) -> Sweep:
-    """Load, check and expand a sweep file (see `parse_sweep`)."""
-    import yaml
+    """Load, check and expand a sweep file (see `parse_sweep`); ``1e4`` reads as a number."""
+    from isp_twin.input_files import load_yaml
 
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ResourceNotFound(f"{path}: no such sweep file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read the sweep file ({exc})") from None
-    try:
-        raw = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f" line {mark.line + 1}" if mark is not None else ""
-        raise ScenarioError(f"{path}:{line} not valid YAML ({exc.__class__.__name__})") from None
+    raw, _ = load_yaml(path, "sweep file", ScenarioError)
     return parse_sweep(raw, path)
 
 
