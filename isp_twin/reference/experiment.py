@@ -46,6 +46,9 @@ MIN_FOOTPRINT_SIGMA = 3.0
 MAX_AXIS_ATTEMPTS = 8
 #: Excitation tries per run before the axis is redrawn.
 MAX_RUN_TRIES = 8
+#: Highest base frequency of each excitation [Hz]: the paper's Eq. 7 run is
+#: 0.5 Hz; above a few Hz a fast axis's rate stops being smooth at 1 kHz.
+MAX_FREQ_HZ = {"cosine": 5.0, "multisine": 3.0, "steps": 20.0}
 RUN_NAMES: tuple[str, ...] = ("train1", "train2", "heldout")
 _DEG = math.pi / 180.0
 
@@ -151,18 +154,19 @@ def _design_run(
     # Frequency scale: raised when the travel is too long, lowered when the
     # axis hardly moves (a slow axis needs slow commands to break away).
     scale = 1.0
+    amplitude_scale = 1.0
     limit = MAX_ANGLE_DEG * _DEG
     for _ in range(MAX_RUN_TRIES):
-        peak = rng.uniform(0.8, 1.0) * COMMAND_SCALE_DIGITS
+        peak = rng.uniform(0.8, 1.0) * COMMAND_SCALE_DIGITS * amplitude_scale
         offset = 0.0
         if kind == "cosine":
             frac = rng.uniform(-0.15, 0.15)
             offset = frac * peak / (1.0 + abs(frac))
-            amp, freq = peak - abs(offset), _log(rng, 0.2, 2.0) * scale
+            amp, freq = peak - abs(offset), min(_log(rng, 0.2, 2.0) * scale, MAX_FREQ_HZ[kind])
         elif kind == "multisine":
-            amp, freq = peak, _log(rng, 0.2, 1.0) * scale
+            amp, freq = peak, min(_log(rng, 0.2, 1.0) * scale, MAX_FREQ_HZ[kind])
         else:
-            amp, freq = peak, _log(rng, 2.0, 8.0) * scale
+            amp, freq = peak, min(_log(rng, 2.0, 8.0) * scale, MAX_FREQ_HZ[kind])
         ex = Excitation(kind, amp, freq, offset, 0.0, n, dt, seed=int(rng.integers(2**31)))
         u = ex.command()
         # The start angle: coarse probes (2 steps per sample) from 0, from
@@ -200,7 +204,14 @@ def _design_run(
             if score > best:
                 best, start = score, candidate
         if span > 1.6 * limit:
-            scale *= span / (1.2 * limit)
+            # Faster commands shorten the travel, up to the frequency cap;
+            # past it, smaller ones (a 100 Hz "Eq. 7 run" is no
+            # identification experiment, and its rate is not smooth at the
+            # sample rate, which the noise-floor estimate assumes).
+            if freq * span / (1.2 * limit) <= MAX_FREQ_HZ[kind]:
+                scale *= span / (1.2 * limit)
+            else:
+                amplitude_scale *= max(0.3, 1.2 * limit / span)
             continue
         ex = replace(ex, initial_angle_rad=start)
         run = simulate(
