@@ -10,7 +10,18 @@ from pathlib import Path
 from isp_twin.errors import DataError
 from isp_twin.measured import DataMapping, load_data_description, mapping_from_options
 
-__all__ = ["add_data_options", "check_initial_angle", "mapping_from_args"]
+__all__ = [
+    "MAX_SAMPLES",
+    "add_data_options",
+    "check_initial_angle",
+    "check_sample_budget",
+    "mapping_from_args",
+]
+
+#: Default limit on the samples of one identify/diagnose call (all runs together):
+#: about 8 times the 2 x 6000 samples of the issue 8 benchmark, a few minutes of
+#: work on 2 cores. Every trial parameter set simulates every sample.
+MAX_SAMPLES = 100_000
 
 
 def add_data_options(p: argparse.ArgumentParser) -> None:
@@ -32,12 +43,35 @@ def add_data_options(p: argparse.ArgumentParser) -> None:
         metavar="DEG",
         help="angle at the first sample [deg] for rate-only data (the angle is integrated)",
     )
+    p.add_argument(
+        "--max-samples",
+        type=int,
+        default=MAX_SAMPLES,
+        metavar="N",
+        help=f"refuse data with more samples than this in all runs together (default {MAX_SAMPLES})",
+    )
 
 
 def check_initial_angle(args: argparse.Namespace) -> None:
     """--initial-angle must be a finite angle."""
     if not math.isfinite(args.initial_angle):
         raise DataError(f"--initial-angle must be a finite angle [deg], got {args.initial_angle}")
+
+
+def check_sample_budget(runs, args: argparse.Namespace) -> None:
+    """Refuse, before any work, data longer than --max-samples (all runs together)."""
+    limit = args.max_samples
+    if limit < 20:
+        raise DataError(f"--max-samples must be >= 20, got {limit}")
+    total = sum(len(r) for r in runs)
+    if total > limit:
+        longest = max(runs, key=len)
+        raise DataError(
+            f"{total:,} samples in {len(runs)} run(s) (longest {longest.name}: {len(longest):,}) "
+            f"exceed the limit of {limit:,} (--max-samples): every trial parameter set simulates "
+            "every sample; cut the log to the segments that excite the axis, or resample it, or "
+            "raise --max-samples"
+        )
 
 
 def mapping_from_args(args: argparse.Namespace) -> DataMapping | None:

@@ -12,6 +12,7 @@ from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
+    check_sample_budget,
     mapping_from_args,
 )
 from isp_twin.commands.progress import working
@@ -125,6 +126,7 @@ def execute(args: argparse.Namespace) -> int:
     params = load_parameters(args.params)
     mapping = mapping_from_args(args)
     runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.holdout]])
+    check_sample_budget(runs, args)
     train, holdout = runs[: len(args.data)], runs[len(args.data) :]
     for line in check_sample_period(runs, params.sample_time_s, str(params.path or params.name)):
         print(line)

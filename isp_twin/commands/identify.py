@@ -12,6 +12,7 @@ from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
+    check_sample_budget,
     mapping_from_args,
 )
 from isp_twin.errors import ParameterError
@@ -111,6 +112,7 @@ def execute(args) -> int:
 
     mapping = mapping_from_args(args)
     runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.validate]])
+    check_sample_budget(runs, args)
     train, validation = runs[: len(args.data)], runs[len(args.data) :]
     prior_set = load_parameters(prior_path)
     prior = prior_set.axis(args.axis)
