@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from isp_twin.verdict import noise_floor_of
+
 __all__ = [
     "NOISE_METHOD",
     "ResidualAnalysis",
@@ -38,11 +40,7 @@ NOISE_METHOD = (
 
 def noise_floor(residual_runs) -> float:
     """Measurement-noise standard deviation [rad/s] from per-run residuals (see module doc)."""
-    diffs = [np.diff(np.asarray(r, float), 2) for r in residual_runs if len(r) > 3]
-    if not diffs:
-        return float("nan")
-    d = np.concatenate(diffs)
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0))
+    return noise_floor_of(residual_runs)
 
 
 @dataclass(frozen=True)
