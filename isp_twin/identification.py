@@ -14,18 +14,20 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    identified: its five numbers are frozen at the prior, it is written with
    ``identified: false`` and gets no interval.
 3. **Initial estimate.** One-step-ahead (equation-error) least squares per
-   regime: for a fixed alpha, Eq. 6 is linear in (a, b·Ke, b·Tc, b·(Ts-Tc)),
-   and break-away samples add b·Ke and b·Ts; alpha is found by a grid. It is
-   biased by rate noise, so it only centres the search.
-4. **Global search.** Differential evolution (scipy, seeded, vectorized: the
-   population is the batch dimension of `isp_twin.axis_model.simulate`)
-   minimizes Eq. 9, the RMS of the simulated-rate error over all sets at once,
-   in a box spanning the start and the prior (widened by `search_factor`).
-5. **Local refinement.** `scipy.optimize.least_squares` on the residual
-   vector, with a batched finite-difference Jacobian. The result is then
-   taken in the form the parameter file stores (6 digits), moved off a
-   stick/slip threshold if the rounding would spoil the fit
-   (`_robust_to_storage`).
+   regime, with the physical bounds: for a fixed alpha, Eq. 6 is linear in
+   (a, b·Ke, b·Tc, b·(Ts-Tc)), and break-away samples add b·Ke and b·Ts;
+   alpha is found by a grid. Nothing comes from the prior's values.
+4. **Local refinement.** `scipy.optimize.least_squares` on Eq. 9's residual
+   vector in log variables (`_to_z`) with limits from the data
+   (`_z_limits`), a batched finite-difference Jacobian; then the read-out
+   timing (`Timing`) is chosen from the data and the fit refined with it.
+5. **Global search**, only when the fit is still above
+   `Settings.converged_ratio` noise floors: differential evolution (scipy,
+   seeded, vectorized: the population is the batch dimension of
+   `isp_twin.axis_model.simulate`) in a box around the best point, then
+   least squares again. The result is taken in the form the parameter file
+   stores (6 digits), moved off a stick/slip threshold if the rounding would
+   spoil the fit (`_robust_to_storage`).
 6. **Confidence intervals** from the Jacobian: ``cov = s^2 (J^T J)^-1``,
    inflated by ``(1 + rho)/(1 - rho)`` for a lag-1 residual correlation
    rho > 0 (effective sample size), with the Student t quantile. A
@@ -68,6 +70,7 @@ __all__ = [
     "SIDES",
     "TIMINGS",
     "Timing",
+    "gyro_reading",
     "rate_noise",
     "Settings",
     "IdentificationResult",
@@ -118,9 +121,6 @@ class Timing:
 
 
 #: Read-out timings tried by `identify` (``side="measured"``); the paper's Eq. 6 first.
-#: (A gyro averaging over the sample, modelled as the mean of the rate at both
-#: ends of the step, was tried on a continuous 8 ms axis with an averaging gyro
-#: and fitted worse than the point read-out at every shift: not offered.)
 TIMINGS: tuple[Timing, ...] = tuple(
     Timing(shift, avg) for avg in (False, True) for shift in (0.0, 0.25, 0.5, 0.75)
 )
@@ -139,7 +139,6 @@ class Settings:
         min_regime_samples: moving samples below which a regime is not identified.
         rest_rate_deg_s: |rate| at or below this counts as "at rest" [deg/s].
         side: half-plane selection, one of `SIDES`.
-        search_factor: unused (kept for old callers).
         confidence: level of the intervals.
         converged_ratio: the global search runs when the least-squares fit
             from the data's own start ends above this multiple of the rate
@@ -158,7 +157,6 @@ class Settings:
     min_regime_samples: int = 50
     rest_rate_deg_s: float = 0.1
     side: str = "measured"
-    search_factor: float = 3.0
     confidence: float = 0.95
     converged_ratio: float = 1.2
     prior_in_search: bool = False
@@ -167,8 +165,8 @@ class Settings:
     def __post_init__(self):
         if self.side not in SIDES:
             raise ParameterError(f"side '{self.side}' unknown; allowed: {', '.join(SIDES)}")
-        if self.population < 5 or self.generations < 0 or self.search_factor <= 1:
-            raise ParameterError("population >= 5, generations >= 0, search_factor > 1 required")
+        if self.population < 5 or self.generations < 0:
+            raise ParameterError("population >= 5 and generations >= 0 required")
 
 
 @dataclass(frozen=True)
@@ -316,10 +314,20 @@ def simulate_data(
     )
     if not timing.gyro_average:
         return resp
-    w = resp.omega
-    avg = w.copy()
-    avg[..., 1:] = 0.5 * (w[..., 1:] + w[..., :-1])
-    return replace(resp, omega=avg)
+    return replace(resp, omega=gyro_reading(resp.omega, True))
+
+
+def gyro_reading(omega: np.ndarray, average: bool) -> np.ndarray:
+    """What the gyro reads of the model's rate, shape (..., N) along time.
+
+    ``average``: the mean of the rate at both ends of each step (a gyro that
+    averages over the sample period); else the rate itself.
+    """
+    if not average:
+        return omega
+    out = np.array(omega, dtype=float, copy=True)
+    out[..., 1:] = 0.5 * (omega[..., 1:] + omega[..., :-1])
+    return out
 
 
 def residuals(
@@ -337,12 +345,6 @@ def residuals(
     with a zero command after their end, which cannot reach back), so the
     time loop is as long as the longest run, not the sum.
     """
-    if len(data) == 1:
-        d = data[0]
-        return (
-            simulate_data(rate, d, side, rest_rate_deg_s, effects, timing).omega[..., 1:]
-            - (d.omega[1:])
-        )
     single = np.ndim(rate.pole) == 1
     vec = np.atleast_2d(rate.to_vector())
     n_sets, n_runs = vec.shape[0], len(data)
@@ -365,7 +367,7 @@ def residuals(
         angle_measured=np.tile(y, (n_sets, 1)),
         effects=[make_effect(e, data[0].dt) for e in effects],
     )
-    omega = resp.omega.reshape(n_sets, n_runs, n)
+    omega = gyro_reading(resp.omega, timing.gyro_average).reshape(n_sets, n_runs, n)
     parts = [omega[:, i, 1 : len(d)] - d.omega[1:] for i, d in enumerate(data)]
     out = np.concatenate(parts, axis=-1)
     return out[0] if single else out
@@ -772,22 +774,28 @@ def identify(
         )
         return ls.x, float(np.sqrt(2 * ls.cost / ls.fun.size)), ls.message.rstrip(".")
 
-    candidates = [("equation-error start", _to_z(x0))]
+    def keep_better(z: np.ndarray, cost: float, label: str, record: bool = False) -> None:
+        """Refine from z (when refinement is on); keep the result if it beats the best.
+
+        The best cost goes to the history after a refinement, or when `record`.
+        """
+        nonlocal z_best, best_cost
+        refined = s.refine and s.refine_evaluations > 0
+        if refined:
+            z, cost, msg = refine(z)
+            status_parts.append(f"least squares from {label} ({msg})")
+        if cost < best_cost:
+            z_best, best_cost = z, cost
+        if refined or record:
+            history.append(best_cost)
+
+    starts = [_to_z(x0)]
     if s.prior_in_search:
-        candidates.append(("prior", _to_z(prior_rate.to_vector()[free])))
-    z_best = candidates[0][1]
-    best_cost = float(z_cost(z_best[None])[0])
-    status_parts = []
-    for _label, z in candidates:
-        c = float(z_cost(z[None])[0])
-        if c < best_cost:
-            z_best, best_cost = z, c
-    if s.refine and s.refine_evaluations > 0:
-        z_ls, c_ls, msg = refine(z_best)
-        status_parts.append(f"least squares from the equation-error start ({msg})")
-        if c_ls < best_cost:
-            z_best, best_cost = z_ls, c_ls
-        history.append(best_cost)
+        starts.append(_to_z(prior_rate.to_vector()[free]))
+    start_costs = z_cost(np.array(starts))
+    z_best, best_cost = starts[int(np.argmin(start_costs))], float(np.min(start_costs))
+    status_parts: list[str] = []
+    keep_better(z_best, best_cost, "the data's start")
     if s.timing is not None:
         timing = s.timing
         cache.clear()
@@ -800,15 +808,11 @@ def identify(
             timing = candidate
             costs[candidate] = float(z_cost(z_best[None])[0])
         timing = min(costs, key=costs.get)
+        status_parts.append(timing.describe())
         if timing != Timing():
             cache.clear()
             best_cost = costs[timing]
-            if s.refine and s.refine_evaluations > 0:
-                z_ls, c_ls, msg = refine(z_best)
-                if c_ls < best_cost:
-                    z_best, best_cost = z_ls, c_ls
-            history.append(best_cost)
-        status_parts.append(timing.describe())
+            keep_better(z_best, best_cost, "the best point at that timing", record=True)
     if s.generations > 0 and best_cost > target:
         # Not at the noise: a global search in a box around the best point
         # (spans of the log-parameters below), then least squares again.
@@ -818,7 +822,7 @@ def identify(
         rng = np.random.default_rng(s.seed)
         init = lo + (hi - lo) * rng.random((s.population, n_free))
         init[0] = np.clip(z_best, lo, hi)
-        for i, (_, z) in enumerate(candidates[: s.population - 1]):
+        for i, z in enumerate(starts[: s.population - 1]):
             init[i + 1] = np.clip(z, lo, hi)
 
         def on_generation(intermediate_result):
@@ -839,13 +843,7 @@ def identify(
             callback=on_generation,
         )
         status_parts.append(f"differential evolution ({s.generations} generations)")
-        z_de, c_de = de.x, float(de.fun)
-        if s.refine and s.refine_evaluations > 0:
-            z_de, c_de, msg = refine(z_de)
-            status_parts.append(f"least squares ({msg})")
-        if c_de < best_cost:
-            z_best, best_cost = z_de, c_de
-        history.append(best_cost)
+        keep_better(de.x, float(de.fun), "its best", record=True)
     status = "; ".join(status_parts) or "equation-error estimate"
     x_best = _from_z(np.clip(z_best, z_lo, z_hi)[None])[0]
 

@@ -81,6 +81,7 @@ def result_json(
     params: AxisParams,
     validation: Sequence[MeasuredData] = (),
     train: Sequence[MeasuredData] = (),
+    verdict: FitVerdict | None = None,
 ) -> dict:
     """The ``--json`` content: verdict, parameters, ci95, identifiable, RMS errors.
 
@@ -98,7 +99,12 @@ def result_json(
         ci95[name] = {f: (num(getattr(ci, f)) if ci is not None else None) for f in PAPER_FIELDS}
         identifiable[name] = {f: _identifiable(result, r, f) for f in PAPER_FIELDS}
     labels = [f"{r}.{f}" for r in REGIMES for f in RATE_FIELDS]
-    verdict = identification_verdict(result, train, validation) if train else None
+    if verdict is None and train:
+        verdict = identification_verdict(result, train, validation)
+    if verdict is not None:
+        rmse_validation = {n: verdict.rmse[n] / DEG for n in verdict.held_out}
+    else:
+        rmse_validation = rmse_table(result, validation)
     return {
         "axis": axis,
         "converged": verdict.converged if verdict else None,
@@ -122,7 +128,7 @@ def result_json(
             "identifiable": dict(zip(labels, map(bool, result.identifiable))),
         },
         "rmse_train": {k: v / DEG for k, v in result.rmse_train.items()},
-        "rmse_validation": rmse_table(result, validation),
+        "rmse_validation": rmse_validation,
         "cost_deg_s": result.cost / DEG,
         "noise_floor_deg_s": num(result.noise / DEG),
         "status": result.status,
@@ -217,11 +223,13 @@ def write_report(
     train: Sequence[MeasuredData],
     validation: Sequence[MeasuredData] = (),
     parameters_path: str | Path | None = None,
+    verdict: FitVerdict | None = None,
 ) -> Path:
     """Write the Markdown report and its PNG figures (beside it); return its path."""
     path = Path(path)
     stem = path.with_suffix("")
-    verdict = identification_verdict(result, train, validation)
+    if verdict is None:
+        verdict = identification_verdict(result, train, validation)
     lines = [
         f"# Identification report: {axis}",
         "",
@@ -271,7 +279,8 @@ def write_report(
     for d in train:
         v = result.rmse_train[d.name]
         lines.append(f"| {d.name} | identification | {v / DEG:.4g} | {v:.4g} |")
-    for name, v in rmse_table(result, validation).items():
+    for name in verdict.held_out:
+        v = verdict.rmse[name] / DEG
         lines.append(f"| {name} | validation | {v:.4g} | {v * DEG:.4g} |")
     lines += ["", "## Measured vs model rate (Fig. 4)", ""]
     for role, sets in (("identification", train), ("validation", validation)):

@@ -163,14 +163,16 @@ def execute(args) -> int:
         f"other axes from {prior_set.name}",
         path=None,
     )
-    summary = result_json(result, args.axis, axis_params, validation, train)
     verdict = identification_verdict(result, train, validation)
+    summary = result_json(result, args.axis, axis_params, validation, train, verdict)
     summary["sample_period_s"] = {d.name: d.dt for d in train + validation}
     summary.setdefault("units", {})["sample_period_s"] = "s"
     with transaction():
         save_parameters(out_set, args.out)
         if report is not None:
-            write_report(report, result, args.axis, axis_params, train, validation, args.out)
+            write_report(
+                report, result, args.axis, axis_params, train, validation, args.out, verdict
+            )
         if args.json is not None:
             write_text_atomic(args.json, json.dumps(summary, indent=2) + "\n")
     if not args.quiet:

@@ -555,8 +555,8 @@ THRESHOLD_PARAMS = frozenset({"width_digits", "limit_digits", "delay_s"})
 
 def _determined(fit: CandidateFit) -> tuple[bool, str]:
     """Whether the data determine the effect: every free parameter has a finite
-    interval, and at least one strength parameter (null value 0 or inf) is
-    farther from its null than its 95 % half-width."""
+    interval, and at least one strength parameter (null value 0) is farther
+    from 0 than its 95 % half-width."""
     cls = EFFECTS[fit.name]
     frozen = set(getattr(cls, "frozen", ()))
     # Thresholds (a dead-zone width, a saturation limit, a delay) change the
@@ -566,12 +566,9 @@ def _determined(fit: CandidateFit) -> tuple[bool, str]:
     undefined = [p for p in free if not np.isfinite(fit.ci95.get(p, np.nan))]
     if undefined:
         return False, f"parameters not determined ({', '.join(undefined)}: no finite interval)"
-    strengths = [p for p in free if cls.null[p] == 0.0 or not np.isfinite(cls.null[p])]
-    if not strengths:
+    strengths = [p for p in free if cls.null[p] == 0.0]
+    if not strengths or any(abs(fit.params[p]) > fit.ci95[p] for p in strengths):
         return True, ""
-    for p in strengths:
-        if abs(fit.params[p] - (0.0 if cls.null[p] == 0.0 else 0.0)) > fit.ci95[p]:
-            return True, ""
     shown = ", ".join(f"{p} {fit.params[p]:.3g} +- {fit.ci95[p]:.2g}" for p in strengths)
     return False, f"strength not determined ({shown}: the interval includes no effect)"
 

@@ -15,6 +15,7 @@ import numpy as np
 from isp_twin.axis_model import simulate
 from isp_twin.effects.batched import make_batched
 from isp_twin.errors import DataError
+from isp_twin.identification import gyro_reading
 from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE
 from isp_twin.parameters import EffectSpec, RateParams
 
@@ -158,10 +159,7 @@ def predict(
             resp.omega_true,
         )
     shape = (p, r, n)
-    omega = resp.omega
-    if stack.gyro_average:
-        omega = omega.copy()
-        omega[:, 1:] = 0.5 * (resp.omega[:, 1:] + resp.omega[:, :-1])
+    omega = gyro_reading(resp.omega, stack.gyro_average)
     return type(resp)(
         omega.reshape(shape),
         resp.angle.reshape(shape),
