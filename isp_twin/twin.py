@@ -25,8 +25,11 @@ so gyro = carrier rate + relative rate holds sample by sample.
 
 from __future__ import annotations
 
+import copy
+import ctypes
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import mujoco
@@ -51,7 +54,9 @@ __all__ = [
     "MAX_COMMAND",
     "PhysicalAxis",
     "TwinState",
+    "TwinArrays",
     "Twin",
+    "mujoco_library",
 ]
 
 #: Gimbal order of every (4,) array of the twin (commands and state).
@@ -185,6 +190,65 @@ def _load_model(path: Path) -> mujoco.MjModel:
         raise ParameterError(f"{path}: MuJoCo cannot compile the model: {first}") from None
 
 
+@lru_cache(maxsize=1)
+def mujoco_library() -> str | None:
+    """Path of the MuJoCo shared library the `mujoco` package loaded, or None.
+
+    For compiled code (`isp_twin.closed_loop_kernel`) that calls ``mj_step1``
+    and ``mj_step2`` without a Python call per step; it is the same file the
+    bindings use, so the same library instance. None when it cannot be found
+    or loaded, or pointers do not fit a ``size_t`` (the compiled code passes
+    ``mjModel*`` and ``mjData*`` as such).
+    """
+    folder = Path(mujoco.__file__).parent
+    libs = sorted(folder.glob("libmujoco.so*")) + sorted(folder.glob("libmujoco*.dylib"))
+    if not libs or ctypes.sizeof(ctypes.c_void_p) != ctypes.sizeof(ctypes.c_size_t):
+        return None
+    try:
+        lib = ctypes.CDLL(str(libs[0]))
+    except OSError:
+        return None
+    return str(libs[0]) if hasattr(lib, "mj_step1") and hasattr(lib, "mj_step2") else None
+
+
+@lru_cache(maxsize=4)
+def _compiled_model(path: str, mtime_ns: int) -> mujoco.MjModel:
+    """The compiled model of a file (cached per process and file version; callers copy it)."""
+    return _load_model(Path(path))
+
+
+@dataclass(frozen=True)
+class TwinArrays:
+    """What compiled code needs to step the twin (views into MuJoCo's buffers).
+
+    Attributes:
+        model_address, data_address: the ``mjModel*`` and ``mjData*``.
+        qpos, qvel, sensordata, qfrc_constraint, qfrc_applied, ctrl, site_xmat,
+            xaxis, warning_number: views of the `mujoco.MjData` fields.
+        frictionloss: view of ``model.dof_frictionloss``.
+        index: int64 indices, layout `Twin.INDEX` (gimbal slots, sensors,
+            turntable joints and actuators).
+        friction_table: shape (4, 28), per slot: drive gain (4), viscous (4),
+            Ts (4), Tc (4), alpha (4), rest frictionloss R/L (2), rest bias
+            R/L (2), SI (see `PhysicalAxis`), 4 spare.
+    """
+
+    model_address: int
+    data_address: int
+    qpos: np.ndarray
+    qvel: np.ndarray
+    sensordata: np.ndarray
+    qfrc_constraint: np.ndarray
+    qfrc_applied: np.ndarray
+    ctrl: np.ndarray
+    site_xmat: np.ndarray
+    xaxis: np.ndarray
+    warning_number: np.ndarray
+    frictionloss: np.ndarray
+    index: np.ndarray
+    friction_table: np.ndarray
+
+
 class Twin:
     """The simulated ISP: MuJoCo physics plus Eq. 5 friction from a parameter set.
 
@@ -198,10 +262,29 @@ class Twin:
 
     GIMBALS = GIMBALS
     TABLE_JOINTS = TABLE_JOINTS
+    #: Layout of `TwinArrays.index`: name -> (offset, length).
+    INDEX = {
+        "dof_lo": (0, 1),
+        "act_lo": (1, 1),
+        "gyro_az": (2, 1),
+        "gyro_el": (3, 1),
+        "gyro_table": (4, 1),
+        "table_site": (5, 1),
+        "inner_jids": (6, 2),
+        "table_q": (8, 3),
+        "table_act": (11, 3),
+        "slot": (14, 4),
+        "gimbal_of_slot": (18, 4),
+    }
 
     def __init__(self, params: ParameterSet, model_path: Path | str | None = None):
         path = Path(model_path) if model_path is not None else default_model_path()
-        self.model = _load_model(path)
+        try:
+            mtime = path.stat().st_mtime_ns
+        except OSError:
+            mtime = 0  # _load_model names the missing file
+        # A copy of the cached compiled model: the twin writes its frictionloss.
+        self.model = copy.copy(_compiled_model(str(path), mtime))
         self.data = mujoco.MjData(self.model)
         self.params = params
         self.dt = float(self.model.opt.timestep)
@@ -236,6 +319,7 @@ class Twin:
         lo = min(dofs)
         self._lo, self._hi = lo, lo + 4
         mlo = min(motors)
+        self._mlo = mlo
         if (
             sorted(dofs) != list(range(lo, lo + 4))
             or qadr != dofs
@@ -341,11 +425,7 @@ class Twin:
         for s in range(4):
             w = v[s]
             if not -MAX_RATE < w < MAX_RATE:
-                raise SimulationDiverged(
-                    f"twin diverged at t={self.data.time:.4f} s: "
-                    f"{GIMBALS[self._gimbal_of_slot[s]]} rate = {w} rad/s "
-                    f"(allowed |rate| < {MAX_RATE})"
-                )
+                raise self.rate_diverged(s, w)
             _, visc, ts, tc, al, rest_f, rest_b = tab[s]
             side = 0 if q[s] > 0.0 else 1
             if w > REST_RATE or w < -REST_RATE:
@@ -363,6 +443,23 @@ class Twin:
         self._bias = bias
         self._push = push
 
+    def _carrier_rate(self) -> list[float]:
+        """The turntable top's inertial rate on the inner_az and inner_el axes [rad/s].
+
+        Written out in a fixed order (not numpy's ``@``, whose rounding
+        depends on the BLAS kernel, e.g. with or without FMA) so the compiled
+        closed loop (`isp_twin.closed_loop_kernel`) gets the same bits.
+        """
+        d = self.data
+        g = self._gyro_table
+        w0, w1, w2 = d.sensordata[g : g + 3].tolist()
+        m = d.site_xmat[self._table_site].tolist()
+        # the table's rate in world axes: site_xmat (row-major 3x3) @ body-frame rate
+        x0 = m[0] * w0 + m[1] * w1 + m[2] * w2
+        x1 = m[3] * w0 + m[4] * w1 + m[5] * w2
+        x2 = m[6] * w0 + m[7] * w1 + m[8] * w2
+        return [a0 * x0 + a1 * x1 + a2 * x2 for a0, a1, a2 in d.xaxis[self._inner_jids].tolist()]
+
     def _measured_gyro(self) -> list[float]:
         sd = self.data.sensordata
         gyro = [float(sd[self._gyro_az]), float(sd[self._gyro_el])]
@@ -370,6 +467,100 @@ class Twin:
             for e in self._meas_fx[i]:
                 gyro[i] = e.measure(gyro[i])
         return gyro
+
+    # ---------------------------------------------- errors (both step paths)
+
+    def rate_diverged(self, slot: int, rate: float) -> SimulationDiverged:
+        """The error for a runaway gimbal rate [rad/s] found after a step."""
+        return SimulationDiverged(
+            f"twin diverged at t={self.data.time:.4f} s: "
+            f"{GIMBALS[self._gimbal_of_slot[slot]]} rate = {rate} rad/s "
+            f"(allowed |rate| < {MAX_RATE})"
+        )
+
+    def command_diverged(self, slot: int, command: float) -> SimulationDiverged:
+        """The error for a runaway command [digits]."""
+        return SimulationDiverged(
+            f"twin diverged at t={self.data.time:.4f} s: {GIMBALS[self._gimbal_of_slot[slot]]} "
+            f"command = {command} digits (allowed |command| < {MAX_COMMAND:g})"
+        )
+
+    @staticmethod
+    def mujoco_rejected(t_before: float, what: str) -> SimulationDiverged:
+        """The error for a step MuJoCo refused (it resets the data instead)."""
+        return SimulationDiverged(
+            f"twin diverged at t={t_before:.4f} s: MuJoCo rejected the {what}"
+        )
+
+    # ---------------------------------------------------- compiled stepping
+
+    @property
+    def has_effects(self) -> bool:
+        """Whether any effect hooks into the step (the compiled path has none)."""
+        return self._any_cmd or self._any_acc or self._any_meas
+
+    def arrays(self) -> TwinArrays:
+        """The buffers, indices and friction table for compiled stepping (`TwinArrays`).
+
+        Compiled code reproduces `step` and `sense` operation for operation
+        on these; `set_hot_state` hands its per-step state back.
+        """
+        m, d = self.model, self.data
+        index = np.zeros(22, dtype=np.int64)
+        lay = self.INDEX
+        values = {
+            "dof_lo": [self._lo],
+            "act_lo": [self._mlo],
+            "gyro_az": [self._gyro_az],
+            "gyro_el": [self._gyro_el],
+            "gyro_table": [self._gyro_table],
+            "table_site": [self._table_site],
+            "inner_jids": self._inner_jids.tolist(),
+            "table_q": self._table_q.tolist(),
+            "table_act": self._table_act.tolist(),
+            "slot": self._slots,
+            "gimbal_of_slot": self._gimbal_of_slot,
+        }
+        for name, (off, n) in lay.items():
+            index[off : off + n] = values[name]
+        table = np.zeros((4, 28))
+        for s, (gain, visc, ts, tc, al, rest_f, rest_b) in enumerate(self._tab):
+            table[s, :22] = [*gain, *visc, *ts, *tc, *al, *rest_f]
+            table[s, 22:24] = rest_b
+        return TwinArrays(
+            model_address=int(m._address),
+            data_address=int(d._address),
+            qpos=d.qpos,
+            qvel=d.qvel,
+            sensordata=d.sensordata,
+            qfrc_constraint=d.qfrc_constraint,
+            qfrc_applied=d.qfrc_applied,
+            ctrl=d.ctrl,
+            site_xmat=d.site_xmat,
+            xaxis=d.xaxis,
+            warning_number=d.warning.number,
+            frictionloss=m.dof_frictionloss,
+            index=index,
+            friction_table=table,
+        )
+
+    def hot_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The per-step state compiled stepping carries: (ints (8,), floats (12,)).
+
+        ints: moving (4), regime (4), per slot; floats: bias, push, bias
+        used in the last step (4 each) [N·m], per slot.
+        """
+        ints = np.array(self._moving + self._regime, dtype=np.int64)
+        floats = np.array(self._bias + self._push + self._bias_used, dtype=float)
+        return ints, floats
+
+    def set_hot_state(self, ints: np.ndarray, floats: np.ndarray) -> None:
+        """Take back the state compiled stepping advanced (layout of `hot_state`)."""
+        i, f = ints.tolist(), floats.tolist()
+        self._moving, self._regime = i[:4], i[4:8]
+        self._bias, self._push, self._bias_used = f[:4], f[4:8], f[8:12]
+        self._q = self._qpos_g.tolist()
+        self._v = self._qvel_g.tolist()
 
     # ------------------------------------------------------------ public API
 
@@ -441,10 +632,7 @@ class Twin:
                 for e in self._cmd_fx[s]:
                     u = e.command(u)
             if not -MAX_COMMAND < u < MAX_COMMAND:
-                raise SimulationDiverged(
-                    f"twin diverged at t={d.time:.4f} s: {GIMBALS[self._gimbal_of_slot[s]]} "
-                    f"command = {u} digits (allowed |command| < {MAX_COMMAND:g})"
-                )
+                raise self.command_diverged(s, u)
             r = moving[s]
             if r < 0:  # at rest: the drive's sign picks the direction (Eq. 5)
                 r = 2 * (-1 - r) + (u < 0.0)
@@ -465,17 +653,11 @@ class Twin:
         t_before = d.time
         mujoco.mj_step2(m, d)
         if d.time <= t_before:  # MuJoCo resets the data on a bad qacc
-            raise SimulationDiverged(
-                f"twin diverged at t={t_before:.4f} s: MuJoCo rejected the accelerations "
-                "(non-finite qacc)"
-            )
+            raise self.mujoco_rejected(t_before, "accelerations (non-finite qacc)")
         self._prepare()
         mujoco.mj_step1(m, d)
         if d.time <= t_before:
-            raise SimulationDiverged(
-                f"twin diverged at t={t_before:.4f} s: MuJoCo rejected the state "
-                "(non-finite qpos or qvel)"
-            )
+            raise self.mujoco_rejected(t_before, "state (non-finite qpos or qvel)")
         if self._any_meas:
             self._gyro = self._measured_gyro()
 
@@ -484,8 +666,6 @@ class Twin:
         d = self.data
         sd = d.sensordata
         gyro = self._gyro if self._any_meas else [sd[self._gyro_az], sd[self._gyro_el]]
-        g = self._gyro_table
-        w_world = d.site_xmat[self._table_site].reshape(3, 3) @ sd[g : g + 3]
         slot = self._slot
         # frictionloss constraint (plus a stop's force if pressed) + the bias
         friction = -(self._constraint_g + self._bias_used)
@@ -494,7 +674,7 @@ class Twin:
             angle=self._qpos_g[slot],
             rate=self._qvel_g[slot],
             gyro=np.array(gyro, dtype=float),
-            carrier_rate=d.xaxis[self._inner_jids] @ w_world,
+            carrier_rate=np.array(self._carrier_rate()),
             table_angle=d.qpos[self._table_q],
             table_rate=d.qvel[self._table_v],
             friction=friction[slot],
@@ -515,8 +695,6 @@ class Twin:
         gyro = (
             self._gyro if self._any_meas else [float(sd[self._gyro_az]), float(sd[self._gyro_el])]
         )
-        g = self._gyro_table
-        w_world = d.site_xmat[self._table_site].reshape(3, 3) @ sd[g : g + 3]
         slot = self._slots
         q, v = self._qpos_g.tolist(), self._qvel_g.tolist()
         c, b = self._constraint_g.tolist(), self._bias_used
@@ -525,7 +703,7 @@ class Twin:
             [q[s] for s in slot],
             [v[s] for s in slot],
             list(gyro),
-            (d.xaxis[self._inner_jids] @ w_world).tolist(),
+            self._carrier_rate(),
             [-(c[s] + b[s]) for s in slot],
             [regime[s] for s in slot],
             d.qpos[self._table_q].tolist(),
