@@ -14,7 +14,7 @@ Since the machine may be shared, it also times one run in a single process
 just before, and prints the sweep's wall time over the ideal
 (one run x runs / workers): the sweep machinery's own overhead.
 
-    python benchmarks/sweep_1000.py [--runs 1000] [--workers N]
+    python benchmarks/sweep_1000.py [--runs 1000] [--workers N] [--batch B]
     python benchmarks/sweep_1000.py --runs 6000 --duration 0.05   # memory over many runs
 """
 
@@ -37,6 +37,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--batch", type=int, default=1, help="runs per Dask task (sweep --batch)")
     ap.add_argument("--scenario", default="turbulence_1_6Hz")
     ap.add_argument(
         "--duration",
@@ -46,6 +47,7 @@ def main() -> None:
         "cheap runs show whether the parent's memory stays flat",
     )
     args = ap.parse_args()
+    load_before = os.getloadavg()  # the machine may be shared: say how busy it was
     # The reference: one run in this process, now (the machine may be shared).
     from isp_twin.closed_loop import run_scenario
     from isp_twin.scenario import load_scenario
@@ -57,6 +59,7 @@ def main() -> None:
         from isp_twin.scenario import Metrics
 
         scenario = replace(scenario, duration_s=args.duration, metrics=Metrics(skip_s=0.0))
+    run_scenario(scenario)  # the first run also loads (or compiles) the closed-loop kernel
     start = time.perf_counter()
     run_scenario(scenario)
     one = time.perf_counter() - start
@@ -68,6 +71,7 @@ def main() -> None:
         cmd += ["--store", str(tmp / "store.sqlite")]
         if args.workers is not None:
             cmd += ["--workers", str(args.workers)]
+        cmd += ["--batch", str(args.batch)]
         rss: list[tuple[int, float]] = []  # (runs done, parent RSS [MB])
         start = time.perf_counter()
         proc = subprocess.Popen(
@@ -98,7 +102,8 @@ def main() -> None:
         rerun = time.perf_counter() - start
     workers = int(re.search(r"cluster of (\d+) workers", head).group(1))
     print(head)
-    print(f"cores: {len(os.sched_getaffinity(0))}, workers: {workers}")
+    print(f"cores: {len(os.sched_getaffinity(0))}, workers: {workers}, runs per task: {args.batch}")
+    print(f"load average before / after: {load_before} / {os.getloadavg()}")
     ideal = one * args.runs / workers
     print(
         f"one run in a single process (measured just before): {one:.3f} s -> ideal "

@@ -44,7 +44,14 @@ from isp_twin.scenario import INNER_AXES, OUTER_AXES, TABLE_AXES, Motion, Scenar
 from isp_twin.signals import CLOSED_LOOP_SIGNALS
 from isp_twin.units import DEG
 
-__all__ = ["DIVERGED_RATE", "table_angles", "build_rate_loop", "ClosedLoop", "run_scenario"]
+__all__ = [
+    "DIVERGED_RATE",
+    "table_angles",
+    "build_rate_loop",
+    "ClosedLoop",
+    "run_scenario",
+    "load_kernel",
+]
 
 #: An inner inertial rate above this is a runaway [rad/s]: the carrier moves at
 #: a few deg/s and the inner gimbals have +-4 deg of travel, so 60 deg/s means
@@ -156,7 +163,7 @@ class ClosedLoop:
         motions = scenario.turntable.motions()
         # Targets for t_1 .. t_n: step k drives the table to its angle at t_{k+1}.
         targets = np.stack([table_angles(motions[a], self.t + dt) for a in TABLE_AXES], axis=1)
-        self._targets = targets.tolist()
+        self._targets_array = targets
         g = scenario.gyro
         self._gyro_model = g
         self.gyros: list[Gyro] = []
@@ -187,8 +194,9 @@ class ClosedLoop:
                 "closed loop: the compiled path needs numba and a plant without effects"
             )
         if self._kernel is not None:
-            self._targets_array = targets
             self._twin_arrays = twin.arrays()
+        else:
+            self._targets = targets.tolist()  # plain floats for the Python loop
         self.reset()
 
     @property
@@ -387,6 +395,16 @@ class ClosedLoop:
         )
         raise twin.mujoco_rejected(t[k - 1], what)
 
+    def metrics(self) -> dict:
+        """The run's metrics (`isp_twin.metrics.run_metrics`) from every sample so far.
+
+        What `result` reports, without copying the series (a sweep needs only these).
+        """
+        done = self._k
+        buf = self.buffer[:done]
+        signals = {name: buf[:, c] for c, name in enumerate(CLOSED_LOOP_SIGNALS.signals)}
+        return run_metrics(self.t[:done], signals, self.scenario.skip_s)
+
     def result(self, interrupted: bool = False) -> RunResult:
         """The samples run so far as a `RunResult`, with metrics from every sample.
 
@@ -400,7 +418,7 @@ class ClosedLoop:
         j0 = layout.joint_columns.start
         joint_angles = {name: buf[:, j0 + c].copy() for c, name in enumerate(layout.joints)}
         t = self.t[:done]
-        metrics = run_metrics(t, signals, scenario.skip_s)
+        metrics = self.metrics()
         step = scenario.record.decimation
         if step > 1:
             # The metrics above saw every sample; the record keeps every n-th.
@@ -455,13 +473,19 @@ def run_scenario(
     return loop.result(interrupted)
 
 
-def _kernel_for(twin):
-    """The compiled-kernel module if it can step `twin`, else None."""
+def load_kernel():
+    """The compiled loop's module (`isp_twin.closed_loop_kernel`), or None without numba."""
     try:
         from isp_twin import closed_loop_kernel
     except ImportError:  # numba missing or broken: the Python blocks do the same
         return None
-    return closed_loop_kernel if closed_loop_kernel.available(twin) else None
+    return closed_loop_kernel
+
+
+def _kernel_for(twin):
+    """The compiled-kernel module if it can step `twin`, else None."""
+    kernel = load_kernel()
+    return kernel if kernel is not None and kernel.available(twin) else None
 
 
 def _read_text(path: Path | None) -> str:

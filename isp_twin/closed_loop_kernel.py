@@ -73,6 +73,8 @@ I_SMOOTH, I_NOISE, I_SCALE, I_SAT_BOUND = 25, 26, 27, 28
 O_KP, O_KI, O_KD, O_LIMIT = 0, 1, 2, 3
 # `KernelConfig.misc`.
 M_QUANTUM, M_DT, M_CENTER0, M_CENTER1, M_FOLLOW, M_DIVERGED, M_SAT_LIMIT, M_SAT_SAMPLES = range(8)
+# The twin's limits travel as data: numba's cache would keep a stale copy of a constant.
+M_MAX_RATE, M_REST_RATE, M_MAX_COMMAND = 8, 9, 10
 # `KernelConfig.ints`.
 N_SAMPLE_EVERY, N_WINDOW, N_TAPS0, N_TAPS1, N_COL_INNER0, N_COL_INNER1 = range(6)
 N_COL_OUTER0, N_COL_OUTER1, N_COL_JOINTS = 6, 7, 8
@@ -90,8 +92,9 @@ class KernelConfig:
         inner: shape (2, 32), per inner axis: PI, bound, notch, NFC, gyro (SI,
             digits, counts as in the blocks).
         outer: shape (2, 4), per outer axis: follower kp, ki, kd, limit.
-        misc: shape (8,): resolver quantum [rad], dt [s], follower centres
-            [rad], follow flag, divergence and saturation limits.
+        misc: shape (11,): resolver quantum [rad], dt [s], follower centres
+            [rad], follow flag, divergence and saturation limits, the twin's
+            `MAX_RATE`, `REST_RATE`, `MAX_COMMAND`.
         ints: shape (9,): gyro sample_every, resolver window, NFC taps, and the
             buffer columns of each axis block and of the joint angles.
     """
@@ -168,7 +171,11 @@ def pack_config(
     r = resolvers[0]
     if any(x.quantum != r.quantum or x.window != r.window or x.dt != r.dt for x in resolvers):
         raise ValueError("the compiled loop needs one resolver model for the four gimbals")
-    misc = np.array([r.quantum, r.dt, centers[0], centers[1], float(follow), *limits], dtype=float)
+    misc = np.array(
+        [r.quantum, r.dt, centers[0], centers[1], float(follow), *limits]
+        + [MAX_RATE, REST_RATE, MAX_COMMAND],
+        dtype=float,
+    )
     ints = np.array(
         [
             gyros[0].sample_every,
@@ -270,16 +277,22 @@ if _LIB is not None:
     _mj_step1 = numba.types.ExternalFunction("mj_step1", _STEP_SIGNATURE)
     _mj_step2 = numba.types.ExternalFunction("mj_step2", _STEP_SIGNATURE)
 
-    @numba.njit(cache=True)
-    def _prepare(qpos, qvel, frictionloss, lo, table, tw_i, tw_f, err) -> int:
+    _F1, _F2, _I1 = numba.float64[::1], numba.float64[:, ::1], numba.int64[::1]
+
+    @numba.njit(
+        numba.int64(_F1, _F1, _F1, numba.int64, _F2, _I1, _F1, _F1, _F1),
+        cache=True,
+    )
+    def _prepare(qpos, qvel, frictionloss, lo, table, tw_i, tw_f, err, misc) -> int:
         """`Twin._prepare`: frictionloss, bias and push from the state; 0 or TWIN_RATE."""
+        max_rate, rest_rate = misc[M_MAX_RATE], misc[M_REST_RATE]
         for s in range(4):
             w = qvel[lo + s]
-            if not -MAX_RATE < w < MAX_RATE:
+            if not -max_rate < w < max_rate:
                 err[0], err[1] = s, w
                 return TWIN_RATE
             side = 0 if qpos[lo + s] > 0.0 else 1
-            if w > REST_RATE or w < -REST_RATE:
+            if w > rest_rate or w < -rest_rate:
                 r = 2 * side + (1 if w < 0.0 else 0)
                 tc = table[s, 12 + r]
                 ts = table[s, 8 + r]
@@ -294,7 +307,18 @@ if _LIB is not None:
                 tw_i[s] = -1 - side
         return OK
 
-    @numba.njit(cache=True)
+    # Compiled (or loaded from the cache) at import, not at the first run: a
+    # Ctrl-C during numba's loading would leave its state inconsistent.
+    @numba.njit(
+        numba.int64(
+            *(numba.int64, numba.int64, numba.int64, numba.int64),
+            *(_F1, _F1, _F1, _F1, _F1, _F1, _F2, _F2, numba.int32[:], _F1),
+            *(_I1, _F2, _F2, _F2, _F1, _I1),
+            *(_F2, _F1, _F2, _F2, _F1, _I1, _I1, _F1, _F2, _F1),
+            *(_F2, _F2),
+        ),
+        cache=True,
+    )
     def _advance(
         stop,
         n,
@@ -334,6 +358,7 @@ if _LIB is not None:
         quantum, dt = misc[M_QUANTUM], misc[M_DT]
         follow = misc[M_FOLLOW] != 0.0
         diverged, sat_limit, sat_samples = misc[M_DIVERGED], misc[M_SAT_LIMIT], misc[M_SAT_SAMPLES]
+        max_command = misc[M_MAX_COMMAND]
         every, window = cint[N_SAMPLE_EVERY], cint[N_WINDOW]
         col_joints = cint[N_COL_JOINTS]
         nres = window + 1
@@ -482,7 +507,7 @@ if _LIB is not None:
             # --- Twin.step(command, targets[k])
             for s in range(4):
                 u = command[idx[18 + s]]
-                if not -MAX_COMMAND < u < MAX_COMMAND:
+                if not -max_command < u < max_command:
                     err[0], err[1] = s, u
                     return TWIN_COMMAND
                 r = tw_i[s]
@@ -499,7 +524,7 @@ if _LIB is not None:
             _mj_step2(m_addr, d_addr)
             if warning[_BADQACC] != warned:
                 return TWIN_QACC
-            code = _prepare(qpos, qvel, frictionloss, lo, table, tw_i, tw_f, err)
+            code = _prepare(qpos, qvel, frictionloss, lo, table, tw_i, tw_f, err, misc)
             if code != OK:
                 return code
             warned = warning[_BADQPOS] + warning[_BADQVEL]

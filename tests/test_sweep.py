@@ -255,8 +255,10 @@ def _stored(store, sweep):
     }
 
 
-def test_in_process_one_worker_and_two_workers_give_identical_numbers(files, cluster):
-    sweep = load_sweep(files({**GRID, "grid": {"controller.inner_az.nfc.gamma": [0.9, 0.98]}}))
+def test_in_process_one_worker_two_workers_and_batches_give_identical_numbers(files, cluster):
+    sweep = load_sweep(
+        files({**GRID, "grid": {"controller.inner_az.nfc.gamma": [0.9, 0.95, 0.98]}})
+    )
     results = []
     with ResultStore(":memory:") as store:
         execute(sweep.runs, store, in_process=True)
@@ -267,10 +269,15 @@ def test_in_process_one_worker_and_two_workers_give_identical_numbers(files, clu
     with ResultStore(":memory:") as store:
         execute(sweep.runs, store, client=cluster)
         results.append(_stored(store, sweep))
-    assert len(results[0]) == len(sweep.runs) == 4
-    assert results[0] == results[1] == results[2]
-    # the seeds differ, so the numbers do
-    assert len({json.dumps(m, sort_keys=True) for _, m in results[0].values()}) == 4
+    # batches of 4 on 2 workers: one full batch, one short; each run lands once
+    with ResultStore(":memory:") as store:
+        done, _ = execute(sweep.runs, store, client=cluster, batch=4)
+        results.append(_stored(store, sweep))
+        assert done == len(list(store.runs())) == 6
+    assert len(results[0]) == len(sweep.runs) == 6
+    assert results[0] == results[1] == results[2] == results[3]
+    # the seeds and gammas differ, so the numbers do
+    assert len({json.dumps(m, sort_keys=True) for _, m in results[0].values()}) == 6
 
 
 def test_a_worker_killed_mid_sweep_has_its_runs_redone_and_each_run_is_stored_once(files, cluster):

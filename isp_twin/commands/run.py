@@ -114,7 +114,9 @@ def execute(args: argparse.Namespace) -> int:
     # The simulator (MuJoCo) is imported before the header: once it is printed
     # the run starts at once (and Ctrl-C from then on keeps what ran).
     if scenario.kind == "closed_loop":
-        import isp_twin.closed_loop  # noqa: F401
+        import isp_twin.closed_loop
+
+        isp_twin.closed_loop.load_kernel()  # numba and the compiled loop, if available
     elif args.engine == "twin":
         import isp_twin.twin  # noqa: F401
     print(f"scenario {name}  ({scenario.source})")

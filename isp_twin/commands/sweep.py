@@ -46,6 +46,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="use a running Dask scheduler, e.g. tcp://10.0.0.5:8786, instead of a local cluster",
     )
     p.add_argument(
+        "--batch",
+        type=int,
+        default=1,
+        metavar="B",
+        help="runs per Dask task (default 1); larger batches cut the per-task overhead of "
+        "many short runs, a worker that dies loses its whole batch",
+    )
+    p.add_argument(
         "--in-process",
         action="store_true",
         help="run here, one run after the other (no Dask)",
@@ -105,6 +113,8 @@ def execute(args: argparse.Namespace) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise ScenarioError(f"--workers must be >= 1, got {args.workers}")
+    if args.batch < 1:
+        raise ScenarioError(f"--batch must be >= 1, got {args.batch}")
     if args.top < 1:
         raise ScenarioError(f"--top must be >= 1, got {args.top}")
     if args.in_process and args.scheduler:
@@ -135,6 +145,7 @@ def execute(args: argparse.Namespace) -> int:
             in_process=args.in_process,
             on_progress=_ProgressPrinter(),
             name=sweep.name,
+            batch=args.batch,
         )
         if done:
             elapsed = time.perf_counter() - start

@@ -18,7 +18,7 @@ import logging
 import math
 import os
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -30,6 +30,7 @@ from isp_twin.sweep.store import ResultStore, RunOutcome
 __all__ = [
     "worker_count",
     "run_one",
+    "run_batch",
     "Progress",
     "local_client",
     "execute",
@@ -100,7 +101,7 @@ def run_one(spec: RunSpec) -> RunOutcome:
         plant, nominal = _parameters(spec.parameters, _mtime(spec.parameters), draw)
         loop = ClosedLoop(scenario_of(spec), params=plant, seed=spec.seed, nfc_params=nominal)
         loop.run()
-        metrics = dict(loop.result().metrics)
+        metrics = dict(loop.metrics())
         status, error = "ok", None
     except IspTwinError as exc:
         metrics, status, error = {}, "failed", str(exc)
@@ -112,6 +113,18 @@ def run_one(spec: RunSpec) -> RunOutcome:
         elapsed_s=time.perf_counter() - start,
         worker=f"{os.uname().nodename}:{os.getpid()}",
     )
+
+
+def run_batch(specs: Sequence[RunSpec]) -> list[RunOutcome]:
+    """Run several specs back to back in one process (one Dask task of a ``--batch`` sweep).
+
+    Each run is `run_one` of its spec, so its numbers are those of a run on
+    its own. The closed loop runs compiled (`isp_twin.closed_loop_kernel`),
+    so there is no per-sample Python left that stepping the runs in lockstep
+    could share; what a batch saves is per task: the scheduler round trip and
+    the transfer of one spec and one outcome.
+    """
+    return [run_one(spec) for spec in specs]
 
 
 @dataclass(frozen=True)
@@ -176,6 +189,7 @@ def execute(
     client: Any = None,
     on_progress: Callable[[Progress], None] | None = None,
     name: str = "",
+    batch: int = 1,
 ) -> tuple[int, int]:
     """Run every spec not yet in `store`, storing each result as it arrives.
 
@@ -190,6 +204,9 @@ def execute(
         client: an existing `distributed.Client` to use (tests, notebooks).
         on_progress: called after each stored run.
         name: the sweep's name, stored with each run.
+        batch: runs per Dask task (`run_batch`); the runs of a batch are
+            stored when the batch returns, and a batch on a worker that dies
+            is redone whole.
 
     Returns:
         (runs done now, runs skipped because the store had them).
@@ -203,6 +220,8 @@ def execute(
         seen.add(spec.key)
         pending.append(spec)
     skipped = len(runs) - len(pending)
+    if batch < 1:
+        raise IspTwinError(f"batch must be >= 1 runs per task, got {batch}")
     if not pending:
         return 0, skipped
     tracker = _Tracker(len(pending), skipped, on_progress)
@@ -226,7 +245,7 @@ def execute(
             client, cluster = local_client(worker_count(workers, len(pending)))
             own = (client, cluster)
     try:
-        _run_on_dask(client, pending, store, tracker, name)
+        _run_on_dask(client, pending, store, tracker, name, batch)
     finally:
         if own is not None:
             own[0].close()
@@ -258,35 +277,39 @@ class _Tracker:
 
 
 def _run_on_dask(
-    client, pending: Sequence[RunSpec], store: ResultStore, tracker: _Tracker, name: str
+    client,
+    pending: Sequence[RunSpec],
+    store: ResultStore,
+    tracker: _Tracker,
+    name: str,
+    batch: int = 1,
 ) -> None:
     from distributed import as_completed
 
     threads = sum(client.nthreads().values()) or 1
     window = max(2, IN_FLIGHT_PER_WORKER * threads)
-    queue = iter(pending)
+    chunks = (list(pending[i : i + batch]) for i in range(0, len(pending), batch))
     by_key: dict[str, RunSpec] = {}
 
-    def submit(specs: Iterable[RunSpec]):
-        futures = []
-        for spec in specs:
+    def submit(chunk: list[RunSpec]):
+        for spec in chunk:
             by_key[spec.key] = spec
-            # pure=False: the key below is the run's identity, the store dedupes
-            futures.append(client.submit(run_one, spec, key=f"run-{spec.key}", pure=False))
-        return futures
+        # pure=False: the run keys are the identity, the store dedupes
+        if batch == 1:
+            return client.submit(run_one, chunk[0], key=f"run-{chunk[0].key}", pure=False)
+        return client.submit(run_batch, chunk, key=f"runs-{chunk[0].key}-{len(chunk)}", pure=False)
 
-    first = [s for _, s in zip(range(window), queue)]
-    stream = as_completed(submit(first))
+    stream = as_completed([submit(c) for _, c in zip(range(window), chunks)])
     try:
         for future in stream:
-            outcome: RunOutcome = future.result()
-            spec = by_key.pop(outcome.key)
-            store.put(spec, outcome, name)
+            result = future.result()
+            for outcome in [result] if batch == 1 else result:
+                store.put(by_key.pop(outcome.key), outcome, name)
+                tracker.stored(outcome)
             future.release()
-            tracker.stored(outcome)
-            nxt = next(queue, None)
+            nxt = next(chunks, None)
             if nxt is not None:
-                stream.update(submit([nxt]))
+                stream.add(submit(nxt))
     except BaseException:
         for f in list(stream.futures):
             f.cancel()
