@@ -144,6 +144,14 @@ def test_a_bad_sweep_file_is_one_line_naming_the_key_with_exit_2_before_any_run(
     assert not store.exists()  # no run started, no store made
 
 
+def test_a_batch_below_one_run_is_a_one_line_error_before_any_run(files, tmp_path, capsys):
+    store = tmp_path / "store.sqlite"
+    assert main(["sweep", str(files(GRID)), "--store", str(store), "--batch", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err == "isp-twin sweep: error: --batch must be >= 1, got 0\n"
+    assert not store.exists()
+
+
 def test_parameter_draws_scatter_with_the_ci95_and_repeat_with_their_seed():
     params = {
         "axes": {
