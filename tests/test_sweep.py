@@ -82,6 +82,11 @@ def test_the_design_is_every_combination_and_each_run_has_its_own_key(files):
     assert all(10.0 <= v <= 30.0 for v in kd) and len(set(kd)) == 3
 
 
+def test_a_sweep_without_a_name_is_named_after_its_file(files):
+    assert load_sweep(files(GRID, "many_seeds.yaml")).name == "many_seeds"
+    assert load_sweep(files({**GRID, "name": "gains"})).name == "gains"
+
+
 def test_a_runs_key_depends_on_its_inputs_not_on_its_place_in_the_design(files):
     a = load_sweep(files(GRID, "a.yaml"))
     b = load_sweep(files({**GRID, "seeds": [2, 1]}, "b.yaml"))

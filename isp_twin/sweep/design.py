@@ -449,13 +449,13 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
 
     case_keys = {k for c in cases for k in c if k != "label"}
     random_keys = set(randoms[0])
-    for a, b, name in (
+    for a, b, both in (
         (set(grid), case_keys, "grid and cases"),
         (set(grid), random_keys, "grid and random"),
         (case_keys, random_keys, "cases and random"),
     ):
         if a & b:
-            raise _err(f"{source}", f"'{sorted(a & b)[0]}' is set by both {name}")
+            raise _err(f"{source}", f"'{sorted(a & b)[0]}' is set by both {both}")
     total = len(cases) * math.prod(len(v) for v in grid.values()) * len(randoms)
     total *= len(draws) * len(seeds)
     if total > MAX_RUNS:
