@@ -66,7 +66,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         sweep = tmp / "many_seeds.yaml"
-        sweep.write_text(f"scenario: {args.scenario}\nseeds: {{first: 1, count: {args.runs}}}\n")
+        text = f"scenario: {args.scenario}\nseeds: {{first: 1, count: {args.runs}}}\n"
+        if args.duration is not None:  # the sweep's runs as short as the reference run
+            text += f"cases: [{{duration_s: {args.duration}, metrics.skip_s: 0.0}}]\n"
+        sweep.write_text(text)
         cmd = [sys.executable, "-m", "isp_twin.cli", "sweep", str(sweep), "--no-plots"]
         cmd += ["--store", str(tmp / "store.sqlite")]
         if args.workers is not None:
