@@ -12,6 +12,11 @@ Per 1 ms sample k (the paper's T, zero-order hold on every command):
 
 The controllers see sensor readings only, never the true state.
 
+The samples run compiled (`isp_twin.closed_loop_kernel`, numba) whenever
+numba is there and the plant has no effects; the Python blocks of
+`isp_twin.control` and `Twin.step` are the reference it reproduces bit for
+bit, and run the rest.
+
 Signals of the `RunResult` (SI, shape (N,)): per inner axis
 ``omega_carrier`` (omega of Eq. 10), ``omega_inertial`` (true omega_1),
 ``omega_relative`` (omega_2), ``gyro`` (the reading, rad/s), ``command``
@@ -301,24 +306,14 @@ class ClosedLoop:
             meas = [res.read(angle[i]) for i, res in enumerate(resolvers)]
             for i in range(2):
                 if not -DIVERGED_RATE < w1[i] < DIVERGED_RATE:
-                    raise SimulationDiverged(
-                        f"closed loop diverged at t={t[k]:.3f} s: {INNER_AXES[i]}/omega_inertial "
-                        f"= {w1[i] / DEG:.1f} deg/s (limit {DIVERGED_RATE / DEG:.0f} deg/s; "
-                        "check the controller gains)"
-                    )
+                    raise _rate_runaway(t[k], i, w1[i])
                 counts = gyros[i].read(w1[i])
                 u, _, u_nfc = loops[i].step(counts, meas[i][0], meas[i][1])
                 if u != u:
-                    raise SimulationDiverged(
-                        f"closed loop diverged at t={t[k]:.3f} s: {INNER_AXES[i]}/command is NaN"
-                    )
+                    raise _command_nan(t[k], i)
                 saturated[i] += ((abs(u) >= bounds[i]) - saturated[i]) / SATURATION_SAMPLES
                 if saturated[i] > SATURATION_LIMIT:
-                    raise SimulationDiverged(
-                        f"closed loop unstable at t={t[k]:.3f} s: {INNER_AXES[i]}/command has "
-                        f"been at its bound (+-{bounds[i] / 0.999:g} digits) "
-                        f"{100 * SATURATION_LIMIT:.0f} % of the time; check the controller gains"
-                    )
+                    raise _saturated(t[k], i, bounds[i])
                 command[i] = u
                 # INNER_SIGNALS order
                 row[inner[i]] = (
@@ -369,21 +364,11 @@ class ClosedLoop:
         i, value = int(state.err[0]), float(state.err[1])
         t = self.t
         if code == kernel.INNER_RATE:
-            raise SimulationDiverged(
-                f"closed loop diverged at t={t[k]:.3f} s: {INNER_AXES[i]}/omega_inertial "
-                f"= {value / DEG:.1f} deg/s (limit {DIVERGED_RATE / DEG:.0f} deg/s; "
-                "check the controller gains)"
-            )
+            raise _rate_runaway(t[k], i, value)
         if code == kernel.INNER_NAN:
-            raise SimulationDiverged(
-                f"closed loop diverged at t={t[k]:.3f} s: {INNER_AXES[i]}/command is NaN"
-            )
+            raise _command_nan(t[k], i)
         if code == kernel.INNER_SATURATED:
-            raise SimulationDiverged(
-                f"closed loop unstable at t={t[k]:.3f} s: {INNER_AXES[i]}/command has "
-                f"been at its bound (+-{self._bounds[i] / 0.999:g} digits) "
-                f"{100 * SATURATION_LIMIT:.0f} % of the time; check the controller gains"
-            )
+            raise _saturated(t[k], i, self._bounds[i])
         if code == kernel.TWIN_COMMAND:
             raise twin.command_diverged(i, value)
         if code == kernel.TWIN_RATE:
@@ -471,6 +456,28 @@ def run_scenario(
     loop = ClosedLoop(scenario, params=params, seed=seed, nfc_params=nfc_params)
     interrupted = loop.run(on_progress)
     return loop.result(interrupted)
+
+
+def _rate_runaway(t: float, axis: int, rate: float) -> SimulationDiverged:
+    return SimulationDiverged(
+        f"closed loop diverged at t={t:.3f} s: {INNER_AXES[axis]}/omega_inertial "
+        f"= {rate / DEG:.1f} deg/s (limit {DIVERGED_RATE / DEG:.0f} deg/s; "
+        "check the controller gains)"
+    )
+
+
+def _command_nan(t: float, axis: int) -> SimulationDiverged:
+    return SimulationDiverged(
+        f"closed loop diverged at t={t:.3f} s: {INNER_AXES[axis]}/command is NaN"
+    )
+
+
+def _saturated(t: float, axis: int, bound: float) -> SimulationDiverged:
+    return SimulationDiverged(
+        f"closed loop unstable at t={t:.3f} s: {INNER_AXES[axis]}/command has "
+        f"been at its bound (+-{bound / 0.999:g} digits) "
+        f"{100 * SATURATION_LIMIT:.0f} % of the time; check the controller gains"
+    )
 
 
 def load_kernel():
