@@ -2,14 +2,15 @@
 
 `isp_twin.closed_loop.ClosedLoop` runs its samples here when it can
 (`available`; no effects on the plant): one call advances many samples,
-calling MuJoCo's ``mj_step2`` / ``mj_step1`` through ctypes, so a sample
-costs about one ``mj_step`` instead of ~30 Python calls around it.
+calling MuJoCo's ``mj_step2`` / ``mj_step1`` itself (by symbol, from the
+library the bindings loaded), so a sample costs about one ``mj_step``
+instead of ~30 Python calls around it.
 
 Every operation repeats the Python blocks it stands for, in the same order
 and with the same floating-point expressions (`Twin.sense`, `Twin.step`,
 `Twin._prepare`, `Gyro.read`, `Resolver.read`, `PIController`,
 `NotchFilter`, `FrictionFeedForward`, `Bound`, `OuterFollower`), so a run is
-bit-identical to the Python path (tests/test_closed_loop.py compares them);
+bit-identical to the Python path (tests/test_closed_loop_kernel.py compares them);
 a change to one of those blocks must be made here too. The gyro noise is
 drawn before the run from the same generator, in the same order.
 
@@ -520,15 +521,19 @@ if _LIB is not None:
             for s in range(4):
                 qfrc_applied[lo + s] = tw_f[4 + s]
                 tw_f[8 + s] = tw_f[s]
-            warned = warning[_BADQACC]
+            # MuJoCo resets the data on a bad state and counts a warning; the
+            # reset zeroes the counters before counting, so only a counter
+            # cleared before the step tells a new reset from an old one.
+            warning[_BADQACC] = 0
             _mj_step2(m_addr, d_addr)
-            if warning[_BADQACC] != warned:
+            if warning[_BADQACC] != 0:
                 return TWIN_QACC
             code = _prepare(qpos, qvel, frictionloss, lo, table, tw_i, tw_f, err, misc)
             if code != OK:
                 return code
-            warned = warning[_BADQPOS] + warning[_BADQVEL]
+            warning[_BADQPOS] = 0
+            warning[_BADQVEL] = 0
             _mj_step1(m_addr, d_addr)
-            if warning[_BADQPOS] + warning[_BADQVEL] != warned:
+            if warning[_BADQPOS] != 0 or warning[_BADQVEL] != 0:
                 return TWIN_STATE
         return OK

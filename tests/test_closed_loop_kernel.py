@@ -124,3 +124,18 @@ def test_a_plant_with_effects_runs_the_python_blocks():
     params = params.with_axis("inner_az", dataclasses.replace(ax, effects=(spec,)))
     loop = ClosedLoop(parse_scenario(BASE, "k.yaml"), params=params)
     assert not loop.compiled
+
+
+def test_a_step_mujoco_rejects_stops_both_loops_with_the_same_message(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT here
+    errors = []
+    for loop in _both(BASE):
+        for _ in range(100):
+            loop.step()
+        # a non-finite turntable drive: qacc turns NaN and MuJoCo resets the data
+        yaw_drive = loop.twin.arrays().index[loop.twin.INDEX["table_act"][0]]
+        loop.twin.model.actuator_gear[yaw_drive, 0] = np.nan
+        with pytest.raises(SimulationDiverged, match="MuJoCo rejected the accelerations") as info:
+            loop.run()
+        errors.append((str(info.value), loop.done))
+    assert errors[0] == errors[1]
