@@ -266,6 +266,30 @@ def advance(
     )
 
 
+# Offsets into `TwinArrays.index` (`Twin.INDEX`), spelled out here because
+# numba's cache would keep a stale copy of values imported from elsewhere;
+# checked against the twin's layout at import.
+X_DOF_LO, X_ACT_LO, X_GYRO_AZ, X_GYRO_EL, X_GYRO_TABLE, X_TABLE_SITE = range(6)
+X_INNER_JIDS, X_TABLE_Q, X_TABLE_ACT, X_SLOT, X_GIMBAL_OF_SLOT = 6, 8, 11, 14, 18
+_EXPECTED = {
+    "dof_lo": (X_DOF_LO, 1),
+    "act_lo": (X_ACT_LO, 1),
+    "gyro_az": (X_GYRO_AZ, 1),
+    "gyro_el": (X_GYRO_EL, 1),
+    "gyro_table": (X_GYRO_TABLE, 1),
+    "table_site": (X_TABLE_SITE, 1),
+    "inner_jids": (X_INNER_JIDS, 2),
+    "table_q": (X_TABLE_Q, 3),
+    "table_act": (X_TABLE_ACT, 3),
+    "slot": (X_SLOT, 4),
+    "gimbal_of_slot": (X_GIMBAL_OF_SLOT, 4),
+}
+if dict(Twin.INDEX) != _EXPECTED:
+    raise ImportError("closed_loop_kernel: Twin.INDEX changed; update the X_* offsets here")
+
+# Columns of `TwinArrays.friction_table` (per regime: 4 columns; per side: 2).
+F_GAIN, F_VISCOUS, F_TS, F_TC, F_ALPHA, F_REST_F, F_REST_B = 0, 4, 8, 12, 16, 20, 22
+
 # Warnings MuJoCo raises when it resets the data (mjtWarning).
 _BADQPOS, _BADQVEL, _BADQACC = 3, 4, 5
 
@@ -295,16 +319,16 @@ if _LIB is not None:
             side = 0 if qpos[lo + s] > 0.0 else 1
             if w > rest_rate or w < -rest_rate:
                 r = 2 * side + (1 if w < 0.0 else 0)
-                tc = table[s, 12 + r]
-                ts = table[s, 8 + r]
-                frictionloss[lo + s] = tc + (ts - tc) * math.exp(-table[s, 16 + r] * abs(w))
-                tw_f[4 + s] = -table[s, 4 + r] * w  # push
+                tc = table[s, F_TC + r]
+                ts = table[s, F_TS + r]
+                frictionloss[lo + s] = tc + (ts - tc) * math.exp(-table[s, F_ALPHA + r] * abs(w))
+                tw_f[4 + s] = -table[s, F_VISCOUS + r] * w  # push
                 tw_f[s] = 0.0  # bias
                 tw_i[s] = r
             else:
-                frictionloss[lo + s] = table[s, 20 + side]
-                tw_f[s] = table[s, 22 + side]
-                tw_f[4 + s] = table[s, 22 + side]
+                frictionloss[lo + s] = table[s, F_REST_F + side]
+                tw_f[s] = table[s, F_REST_B + side]
+                tw_f[4 + s] = table[s, F_REST_B + side]
                 tw_i[s] = -1 - side
         return OK
 
@@ -354,8 +378,9 @@ if _LIB is not None:
         targets,
         buf,
     ) -> int:
-        lo, alo = idx[0], idx[1]
-        g_az, g_el, g_tab, site = idx[2], idx[3], idx[4], idx[5]
+        lo, alo = idx[X_DOF_LO], idx[X_ACT_LO]
+        g_az, g_el = idx[X_GYRO_AZ], idx[X_GYRO_EL]
+        g_tab, site = idx[X_GYRO_TABLE], idx[X_TABLE_SITE]
         quantum, dt = misc[M_QUANTUM], misc[M_DT]
         follow = misc[M_FOLLOW] != 0.0
         diverged, sat_limit, sat_samples = misc[M_DIVERGED], misc[M_SAT_LIMIT], misc[M_SAT_SAMPLES]
@@ -378,7 +403,7 @@ if _LIB is not None:
             x1 += site_xmat[site, 5] * sd[g_tab + 2]
             x2 += site_xmat[site, 8] * sd[g_tab + 2]
             for i in range(4):
-                angle[i] = qpos[lo + idx[14 + i]]
+                angle[i] = qpos[lo + idx[X_SLOT + i]]
             # --- the four resolvers (Resolver.read), one shared ring position
             pos = sint[K_RES_POS]
             for i in range(4):
@@ -464,10 +489,10 @@ if _LIB is not None:
                     return INNER_SATURATED
                 command[i] = u
                 c0 = cint[N_COL_INNER0 + i]
-                jid = idx[6 + i]
+                jid = idx[X_INNER_JIDS + i]
                 wc = xaxis[jid, 0] * x0 + xaxis[jid, 1] * x1
                 wc += xaxis[jid, 2] * x2
-                slot = idx[14 + i]
+                slot = idx[X_SLOT + i]
                 row[c0] = wc
                 row[c0 + 1] = w
                 row[c0 + 2] = qvel[lo + slot]
@@ -499,7 +524,7 @@ if _LIB is not None:
                 row[c0] = true_err
                 row[c0 + 1] = u
             for i in range(3):
-                row[col_joints + i] = qpos[idx[8 + i]]
+                row[col_joints + i] = qpos[idx[X_TABLE_Q + i]]
             for i in range(4):
                 row[col_joints + 3 + i] = angle[i]
             sint[K_DONE] = k + 1
@@ -507,7 +532,7 @@ if _LIB is not None:
                 break
             # --- Twin.step(command, targets[k])
             for s in range(4):
-                u = command[idx[18 + s]]
+                u = command[idx[X_GIMBAL_OF_SLOT + s]]
                 if not -max_command < u < max_command:
                     err[0], err[1] = s, u
                     return TWIN_COMMAND
@@ -515,9 +540,9 @@ if _LIB is not None:
                 if r < 0:
                     r = 2 * (-1 - r) + (1 if u < 0.0 else 0)
                 tw_i[4 + s] = r
-                ctrl[alo + s] = table[s, r] * u
+                ctrl[alo + s] = table[s, F_GAIN + r] * u
             for i in range(3):
-                ctrl[idx[11 + i]] = targets[k, i]
+                ctrl[idx[X_TABLE_ACT + i]] = targets[k, i]
             for s in range(4):
                 qfrc_applied[lo + s] = tw_f[4 + s]
                 tw_f[8 + s] = tw_f[s]

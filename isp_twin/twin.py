@@ -228,9 +228,9 @@ class TwinArrays:
         frictionloss: view of ``model.dof_frictionloss``.
         index: int64 indices, layout `Twin.INDEX` (gimbal slots, sensors,
             turntable joints and actuators).
-        friction_table: shape (4, 28), per slot: drive gain (4), viscous (4),
+        friction_table: shape (4, 24), per slot: drive gain (4), viscous (4),
             Ts (4), Tc (4), alpha (4), rest frictionloss R/L (2), rest bias
-            R/L (2), SI (see `PhysicalAxis`), 4 spare.
+            R/L (2), SI (see `PhysicalAxis`).
     """
 
     model_address: int
@@ -523,10 +523,12 @@ class Twin:
         }
         for name, (off, n) in lay.items():
             index[off : off + n] = values[name]
-        table = np.zeros((4, 28))
-        for s, (gain, visc, ts, tc, al, rest_f, rest_b) in enumerate(self._tab):
-            table[s, :22] = [*gain, *visc, *ts, *tc, *al, *rest_f]
-            table[s, 22:24] = rest_b
+        table = np.array(
+            [
+                [*gain, *visc, *ts, *tc, *al, *rest_f, *rest_b]
+                for gain, visc, ts, tc, al, rest_f, rest_b in self._tab
+            ]
+        )
         return TwinArrays(
             model_address=int(m._address),
             data_address=int(d._address),
