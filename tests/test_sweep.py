@@ -293,7 +293,10 @@ def test_in_process_one_worker_two_workers_and_batches_give_identical_numbers(fi
     assert len({json.dumps(m, sort_keys=True) for _, m in results[0].values()}) == 6
 
 
-def test_a_worker_killed_mid_sweep_has_its_runs_redone_and_each_run_is_stored_once(files, cluster):
+@pytest.mark.parametrize("batch", [1, 3])
+def test_a_worker_killed_mid_sweep_has_its_runs_redone_and_each_run_is_stored_once(
+    files, cluster, batch
+):
     sweep = load_sweep(files({"seeds": {"first": 10, "count": 12}}))
     pids = cluster.run(os.getpid)
     killed = []
@@ -305,7 +308,9 @@ def test_a_worker_killed_mid_sweep_has_its_runs_redone_and_each_run_is_stored_on
             killed.append(victim)
 
     with ResultStore(":memory:") as store:
-        done, skipped = execute(sweep.runs, store, client=cluster, on_progress=kill_one)
+        done, skipped = execute(
+            sweep.runs, store, client=cluster, on_progress=kill_one, batch=batch
+        )
         rows = list(store.runs())
         stored = _stored(store, sweep)
     assert killed and (done, skipped) == (12, 0)
