@@ -28,7 +28,7 @@ import numba
 import numpy as np
 from llvmlite import binding as llvm_binding
 
-from isp_twin.twin import MAX_COMMAND, MAX_RATE, REST_RATE, Twin, mujoco_library
+from isp_twin.twin import MAX_COMMAND, MAX_RATE, REST_RATE, Twin, TwinArrays, mujoco_library
 
 __all__ = [
     "available",
@@ -61,9 +61,9 @@ INNER_RATE = 1  # err: (axis, omega_1)
 INNER_NAN = 2  # err: (axis,)
 INNER_SATURATED = 3  # err: (axis,)
 TWIN_COMMAND = 4  # err: (slot, command)
-TWIN_QACC = 5  # err: (-, -, t before the step)
+TWIN_QACC = 5  # MuJoCo reset the data in mj_step2
 TWIN_RATE = 6  # err: (slot, rate)
-TWIN_STATE = 7  # err: (-, -, t before the step)
+TWIN_STATE = 7  # MuJoCo reset the data in mj_step1
 
 # Columns of `KernelConfig.inner`, per inner axis.
 I_KP, I_KI, I_PI_LIMIT, I_BOUND, I_NOTCH = 0, 1, 2, 3, 4
@@ -113,14 +113,14 @@ class KernelState:
     Attributes:
         inner: shape (2, 8), per inner axis: gyro filter and count, PI
             integral, notch state, saturation average.
-        outer: shape (2,), follower integrals [digits/rad·samples].
+        outer: shape (2,), the followers' integrals of the follow error [rad·samples].
         nfc_history: shape (2, max taps), Eq. 12's ring buffers [digits].
         resolver: shape (4, window + 1), the resolvers' past angles [rad].
         command: shape (4,), the commands of the last sample [digits].
         ints: shape (8,), samples done, gyro phases, ring positions, noise draws used.
         twin_ints, twin_floats: the twin's per-step state (`Twin.hot_state`).
         noise: shape (2, draws), the gyros' standard normal deviates in draw order.
-        err: shape (3,), details of a failure (see the return codes).
+        err: shape (2,), details of a failure (see the return codes).
     """
 
     inner: np.ndarray
@@ -221,14 +221,33 @@ def initial_state(config: KernelConfig, twin: Twin, resolvers, gyros, n: int) ->
         twin_ints=twin_ints,
         twin_floats=twin_floats,
         noise=noise,
-        err=np.zeros(3),
+        err=np.zeros(2),
     )
 
 
 def advance(
-    stop: int, n: int, twin_arrays, config: KernelConfig, state: KernelState, targets, buffer
+    stop: int,
+    n: int,
+    twin_arrays: TwinArrays,
+    config: KernelConfig,
+    state: KernelState,
+    targets: np.ndarray,
+    buffer: np.ndarray,
 ) -> int:
-    """Samples ``state.ints[K_DONE]`` .. stop-1 (as `ClosedLoop._advance`); a return code."""
+    """Samples ``state.ints[K_DONE]`` .. stop-1, as `ClosedLoop._advance` runs them.
+
+    Args:
+        stop: first sample not to run.
+        n: samples of the run (the last one is recorded but not stepped from).
+        twin_arrays: the twin's buffers (`Twin.arrays`).
+        config, state: from `pack_config` and `initial_state`; `state` advances.
+        targets: turntable targets [rad], shape (n, 3): row k for the step to t_{k+1}.
+        buffer: the run's rows, shape (n, `CLOSED_LOOP_SIGNALS.width`).
+
+    Returns:
+        `OK`, or the code of the failure (details in ``state.err``); the
+        samples done are ``state.ints[K_DONE]`` either way.
+    """
     a, c, s = twin_arrays, config, state
     return _advance(
         stop,
