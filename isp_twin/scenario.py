@@ -16,6 +16,7 @@ the runner converts them once.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import types
@@ -377,6 +378,7 @@ def _fields(cls) -> list[dataclasses.Field]:
     return [f for f in dataclasses.fields(cls) if not f.metadata.get("internal")]
 
 
+@functools.cache  # resolving the hints is most of a parse; sweeps parse once per run
 def _hints(cls) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
