@@ -324,10 +324,11 @@ class Scenario:
         "keys the scenario sets itself override the rig's",
     )
     nfc_parameters: str = _f(
-        "plant",
-        "the model the NFC compensates with: 'plant' (the twin's own parameter set, an exact "
-        "model) or a parameter file (a path relative to the scenario file, or a shipped name "
-        "under models/params)",
+        "twin_identified",
+        "the model the NFC compensates with (rig knob nfc_model): a parameter file (a path "
+        "relative to the scenario file, or a shipped name under models/params; default: the "
+        "model identified on the twin's Eq. 7 runs) or 'plant' (the scenario's own parameter "
+        "file: an exact model)",
     )
     turntable: Turntable = _sub(Turntable, "carrier motion")
     controller: Controller = _sub(Controller, "inner rate loops")
