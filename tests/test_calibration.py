@@ -141,12 +141,13 @@ def test_report_does_not_fit(monkeypatch, tmp_path):
     assert main(["report", "-n", "1", "--jobs", "1", "--json", str(js)]) == 0
     doc = json.loads(js.read_text())
     assert "fit" not in doc and doc["settings"] == {}
-    assert doc["cells"]["table4_1_6Hz_pi"]["twin"]["average"] == pytest.approx(65.0 / 3)
+    scale = load_rig(RIG_FILE).knob("gyro_scale").value
+    assert doc["cells"]["table4_1_6Hz_pi"]["twin"]["average"] == pytest.approx(scale / 3)
 
 
 def test_a_bad_rig_stops_calibrate_with_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.yaml"
-    bad.write_text(RIG_FILE.read_text().replace("    value: 65.0\n", "    value: 500.0\n", 1))
+    bad.write_text(RIG_FILE.read_text().replace("    value: 70.0\n", "    value: 500.0\n", 1))
     assert main(["calibrate", "--rig", str(bad), "-n", "1"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "gyro_scale.value" in err
