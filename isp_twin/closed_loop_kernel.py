@@ -70,6 +70,7 @@ I_KP, I_KI, I_PI_LIMIT, I_BOUND, I_NOTCH = 0, 1, 2, 3, 4
 I_B0, I_B1, I_B2, I_A1, I_A2 = 5, 6, 7, 8, 9
 I_NFC, I_GAMMA, I_REST, I_TS, I_TC, I_ALPHA = 10, 11, 12, 13, 17, 21
 I_SMOOTH, I_NOISE, I_SCALE, I_SAT_BOUND = 25, 26, 27, 28
+I_PI_PARALLEL = 29  # 1.0: parallel PI form (u = kp*e + ki*s), 0.0: series
 # Columns of `KernelConfig.outer`, per outer axis.
 O_KP, O_KI, O_KD, O_LIMIT = 0, 1, 2, 3
 # `KernelConfig.misc`.
@@ -155,6 +156,7 @@ def pack_config(
     for i, (loop, gyro) in enumerate(zip(loops, gyros)):
         row = inner[i]
         row[I_KP], row[I_KI], row[I_PI_LIMIT] = loop.pi.kp, loop.pi.ki, loop.pi.limit
+        row[I_PI_PARALLEL] = float(loop.pi.form == "parallel")
         row[I_BOUND] = loop.bound.limit
         if loop.notch is not None:
             n = loop.notch
@@ -456,9 +458,16 @@ if _LIB is not None:
                 # PIController.step(-counts)
                 e = -counts
                 s_new = st[S_INTEGRAL] + e
-                u_pi = p[I_KP] * (e + p[I_KI] * s_new)
+                parallel = p[I_PI_PARALLEL] != 0.0
+                if parallel:
+                    u_pi = p[I_KP] * e + p[I_KI] * s_new
+                else:
+                    u_pi = p[I_KP] * (e + p[I_KI] * s_new)
                 if abs(u_pi) > p[I_PI_LIMIT] and u_pi * e > 0.0:
-                    u_pi = p[I_KP] * (e + p[I_KI] * st[S_INTEGRAL])
+                    if parallel:
+                        u_pi = p[I_KP] * e + p[I_KI] * st[S_INTEGRAL]
+                    else:
+                        u_pi = p[I_KP] * (e + p[I_KI] * st[S_INTEGRAL])
                 else:
                     st[S_INTEGRAL] = s_new
                 # NotchFilter.step

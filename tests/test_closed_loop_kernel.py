@@ -36,6 +36,9 @@ VARIANTS = {
         "follower": {"enabled": False},
         "initial_angles_deg": {"inner_az": -1.0, "inner_el": 0.5, "outer_az": 2.0},
     },
+    "parallel_pi": {
+        "controller": {"inner_az": {"pi_form": "parallel"}, "inner_el": {"pi_form": "parallel"}},
+    },
     "pi_only_following_off_centre": {
         "controller": {"inner_az": {"nfc": {"enabled": False}}},
         "follower": {"inner_az_center_deg": 0.3, "kd_digit_per_deg_s": 5.0},
