@@ -106,6 +106,11 @@ def _get_key(raw: Mapping, path: str) -> Any:
     return node
 
 
+#: Conditions: the follower's settings act only when the outer gimbals follow.
+_FOLLOWING = {"follower.enabled": True}
+_HELD = {"follower.enabled": False}
+
+
 def _inner(key: str) -> tuple[str, ...]:
     return (f"controller.inner_az.{key}", f"controller.inner_el.{key}")
 
@@ -115,8 +120,9 @@ def rig_knob_ranges() -> tuple[KnobRange, ...]:
 
     Interim single source until the rig file (models/rigs/paper_rig.yaml,
     issue 10 item 1) and its loader land; the ranges are that file's
-    declared plausible ranges. Settings with a choice instead of a range (PI
-    form, the NFC's model) are not drawn.
+    declared plausible ranges (the follower's gains and bound apply, here,
+    only where the follower is on: with it off they do not act). Settings
+    with a choice instead of a range (PI form, the NFC's model) are not drawn.
     """
     return (
         KnobRange("gyro_scale", ("gyro.scale_count_per_deg_s",), 32.5, 100.0, False,
@@ -132,18 +138,19 @@ def rig_knob_ranges() -> tuple[KnobRange, ...]:
         KnobRange("bound", _inner("bound_digits"), 1000.0, 3000.0, False, "digits"),
         KnobRange("nfc_rest_rate", _inner("nfc.rest_rate_deg_s"), 0.0, 0.2, False, "deg/s"),
         KnobRange("follower_kp", ("follower.kp_digit_per_deg",), 500.0, 4000.0, False,
-                  "digits/deg", "calibrated"),
+                  "digits/deg", "calibrated", _FOLLOWING),
         KnobRange("follower_ki", ("follower.ki_digit_per_deg",), 0.0, 4.0, False,
-                  "digits/deg/sample", "calibrated"),
+                  "digits/deg/sample", "calibrated", _FOLLOWING),
         KnobRange("follower_kd", ("follower.kd_digit_per_deg_s",), 0.0, 40.0, False,
-                  "digits/(deg/s)", "calibrated"),
-        KnobRange("follower_bound", ("follower.bound_digits",), 1000.0, 3000.0, False, "digits"),
+                  "digits/(deg/s)", "calibrated", _FOLLOWING),
+        KnobRange("follower_bound", ("follower.bound_digits",), 1000.0, 3000.0, False, "digits",
+                  "assumption", _FOLLOWING),
         KnobRange("inner_az_center", ("follower.inner_az_center_deg",), -2.5, 0.0, False, "deg",
-                  "calibrated", {"follower.enabled": True}),
+                  "calibrated", _FOLLOWING),
         KnobRange("inner_el_center", ("follower.inner_el_center_deg",), 0.0, 2.5, False, "deg",
-                  "calibrated", {"follower.enabled": True}),
+                  "calibrated", _FOLLOWING),
         KnobRange("start_angle_held", ("initial_angles_deg.inner_az",), -1.5, 0.0, False, "deg",
-                  "calibrated", {"follower.enabled": False}),
+                  "calibrated", _HELD),
     )  # fmt: skip
 
 
@@ -622,7 +629,7 @@ def format_uncertainty(res: UncertaintyResult, top: int = 12) -> str:
         for r in res.oat:
             fail = f" ({r.failed} runs failed)" if r.failed else ""
             lines.append(
-                f"{r.knob:<22} {f'{r.low:.3g} .. {r.high:.3g}':>22} "
+                f"{r.knob:<22} {f'{r.low:.4g} .. {r.high:.4g}':>22} "
                 f"{r.j_pi[0]:6.1f} {r.j_pi[1]:7.1f} {r.j_nfc[0]:6.1f} {r.j_nfc[1]:7.1f} "
                 f"{r.reduction[0]:7.1f} {r.reduction[1]:8.1f}  {res.oat_verdict(r)}{fail}"
             )
@@ -667,8 +674,10 @@ def plot_uncertainty(res: UncertaintyResult, path: str | Path, top: int = 12) ->
     ax = axes[2]
     rows = list(res.sensitivity[:top])[::-1]
     y = np.arange(len(rows))
-    ax.barh(y - 0.2, [r.rho_nfc for r in rows], height=0.4, label="J PI+NFC")
-    ax.barh(y + 0.2, [r.rho_reduction for r in rows], height=0.4, label="reduction")
+    for shift, key, label in ((-0.27, "rho_pi", "J PI"), (0.0, "rho_nfc", "J PI+NFC")) + (
+        (0.27, "rho_reduction", "NFC reduction"),
+    ):
+        ax.barh(y + shift, [getattr(r, key) for r in rows], height=0.27, label=label)
     ax.set_yticks(y, [r.name + (" *" if r.significant else "") for r in rows], fontsize=7)
     ax.axvline(0.0, color="k", lw=0.8)
     ax.set_xlim(-1, 1)
