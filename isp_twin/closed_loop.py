@@ -95,7 +95,9 @@ def build_rate_loop(
         else None
     )
     return InnerRateLoop(
-        PIController(gains.kp_digit_per_count, gains.ki_digit_per_count, cfg.bound_digits),
+        PIController(
+            gains.kp_digit_per_count, gains.ki_digit_per_count, cfg.bound_digits, cfg.pi_form
+        ),
         Bound(cfg.bound_digits),
         notch,
         nfc,
@@ -114,8 +116,8 @@ class ClosedLoop:
         scenario: a ``kind: closed_loop`` scenario.
         params: the twin's parameter set (default: the scenario's file).
         seed: noise seed (default: the scenario's).
-        nfc_params: the model the NFC compensates with (default: `params`,
-            i.e. a perfectly identified plant).
+        nfc_params: the model the NFC compensates with (default: the
+            scenario's `nfc_parameters`: its file, or `params` for 'plant').
 
     Raises:
         ScenarioError: the scenario is not a closed-loop one.
@@ -143,7 +145,15 @@ class ClosedLoop:
         self.scenario = scenario
         self.params = params
         self.seed = scenario.seed if seed is None else int(seed)
-        nfc_params = nfc_params or params
+        if nfc_params is None:
+            nfc_path = scenario.nfc_parameters_path
+            nfc_params = params if nfc_path is None else load_parameters(nfc_path)
+        #: What the NFC compensates with, for the record.
+        self.nfc_parameters = (
+            "plant"
+            if nfc_params is params
+            else str(nfc_params.path or nfc_params.name or "given in code")
+        )
         self.twin = twin = Twin(params)
         dt = twin.dt
         #: Samples of the run (t_0 .. t_{n-1}).
@@ -330,6 +340,9 @@ class ClosedLoop:
             scenario_text=scenario.text,
             parameters_file=str(params_path) if params_path is not None else self.params.name,
             parameters_text=_read_text(params_path),
+            rig=scenario.rig,
+            rig_text=_read_text(scenario.rig_path),
+            nfc_parameters=self.nfc_parameters,
             seed=self.seed,
             t=t,
             signals=signals,
@@ -355,8 +368,8 @@ def run_scenario(
         seed: noise seed (default: the scenario's).
         on_progress: called as ``on_progress(t, duration_s)`` [s] every
             0.5 s of simulated time and at the end.
-        nfc_params: the model the NFC compensates with (default: `params`,
-            i.e. a perfectly identified plant).
+        nfc_params: the model the NFC compensates with (default: the
+            scenario's `nfc_parameters`: its file, or `params` for 'plant').
 
     Returns:
         The `RunResult` with metrics (see `isp_twin.metrics`, computed from

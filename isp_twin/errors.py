@@ -14,6 +14,7 @@ __all__ = [
     "IspTwinError",
     "ParameterError",
     "ScenarioError",
+    "RigError",
     "DataError",
     "SimulationDiverged",
     "ResourceNotFound",
@@ -32,6 +33,10 @@ class ParameterError(IspTwinError, ValueError):
 
 class ScenarioError(IspTwinError, ValueError):
     """A scenario file is invalid (unknown key, bad value, bad type)."""
+
+
+class RigError(IspTwinError, ValueError):
+    """A rig file is invalid (unknown knob key, value outside its range, bad cell name...)."""
 
 
 class DataError(IspTwinError, ValueError):

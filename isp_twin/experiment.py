@@ -33,6 +33,8 @@ from isp_twin.units import DEG
 __all__ = [
     "Excitation",
     "PAPER_SET",
+    "INNER_EL_SET",
+    "paper_set",
     "EQ7",
     "GYRO_NOISE_DEG_S",
     "RESOLVER_LSB_DEG",
@@ -88,6 +90,22 @@ PAPER_SET: tuple[Excitation, ...] = (
     Excitation(750, 1.0, 0, -3.0, name="set3_a750_f1_y-3"),
     Excitation(950, 0.5, 0, -1.5, name="set4_a950_f0.5_y-1.5"),
 )
+
+
+#: The same for the inner elevation axis of paper_table2.yaml (an assumption:
+#: mirrored half-planes, so it drifts the other way and `PAPER_SET` drives it
+#: into its stops); chosen the same way, by simulating that axis.
+INNER_EL_SET: tuple[Excitation, ...] = (
+    Excitation(650, 0.5, 0, -1.5, name="el1_a650_f0.5_y-1.5"),
+    Excitation(950, 1.0, -100, -1.5, name="el2_a950_f1_o-100_y-1.5"),
+    Excitation(650, 1.0, -100, 0.0, name="el3_a650_f1_o-100_y0"),
+    Excitation(850, 1.0, 0, -3.0, name="el4_a850_f1_y-3"),
+)
+
+
+def paper_set(axis: str) -> tuple[Excitation, ...]:
+    """The four Eq. 7 variations for `axis` (`INNER_EL_SET` for inner_el, else `PAPER_SET`)."""
+    return INNER_EL_SET if axis == "inner_el" else PAPER_SET
 
 
 def _stop_rad(axis: str) -> float | None:

@@ -18,6 +18,8 @@ __all__ = [
     "TABLE5",
     "TABLE6",
     "relative_reduction",
+    "PaperCell",
+    "PAPER_CELLS",
 ]
 
 #: Table 4 columns: frequencies [Hz] and rate amplitudes [deg/s] (pi/2, pi, 2*pi).
@@ -104,3 +106,50 @@ TABLE6 = CampaignTable(
 def relative_reduction(before: float, after: float) -> float:
     """Improvement of the average in percent of the original, as the paper computes it."""
     return 100.0 * (before - after) / before
+
+
+@dataclass(frozen=True)
+class PaperCell:
+    """One figure of Tables 4-6 that the twin reproduces with one scenario and controller.
+
+    Attributes:
+        name: the cell's name, used by rig files and `isp-twin calibrate`.
+        scenario: the shipped scenario that runs it.
+        nfc: True for the PI+NFC controller, False for PI.
+        paper_percent: the paper's J [%] (Table 4: J_actual; Tables 5, 6: the average).
+        source: where in the paper.
+    """
+
+    name: str
+    scenario: str
+    nfc: bool
+    paper_percent: float
+    source: str
+
+
+def _table4_cells() -> list[PaperCell]:
+    cells = []
+    for (f, a), value in TABLE4_ACTUAL.items():
+        ftag = "1_6Hz" if f < 0.3 else "0_5Hz"
+        atag = {math.pi / 2: "half_pi", math.pi: "pi", 2 * math.pi: "2pi"}[a]
+        name = f"table4_{ftag}_{atag}"
+        fname = "1/6" if f < 0.3 else "0.5"
+        cells.append(PaperCell(name, name, False, value, f"Table 4, {fname} Hz, {a:.3f} deg/s, PI"))
+    return cells
+
+
+#: Every paper cell by name: the six Table 4 cells (PI), then Tables 5 and 6 (PI, PI+NFC).
+PAPER_CELLS: dict[str, PaperCell] = {
+    c.name: c
+    for c in _table4_cells()
+    + [
+        PaperCell("table5_pi", "tracking_0_5Hz", False, TABLE5.pi_average, "Table 5, PI"),
+        PaperCell(
+            "table5_pi_nfc", "tracking_0_5Hz", True, TABLE5.pi_nfc_average, "Table 5, PI+NFC"
+        ),
+        PaperCell("table6_pi", "turbulence_1_6Hz", False, TABLE6.pi_average, "Table 6, PI"),
+        PaperCell(
+            "table6_pi_nfc", "turbulence_1_6Hz", True, TABLE6.pi_nfc_average, "Table 6, PI+NFC"
+        ),
+    ]
+}

@@ -695,6 +695,8 @@ def _log_metadata_run(stream: rr.RecordingStream, result: RunResult, n: int) -> 
         "duration_s": float(t[-1] - t[0]) if n else 0.0,
         "interrupted": result.interrupted,
         "parameters_file": result.parameters_file,
+        "rig": result.rig,
+        "nfc_parameters": result.nfc_parameters,
         "isp_twin": isp_twin.__version__,
         "rerun_sdk": rr.__version__,
     }
@@ -710,6 +712,12 @@ def _log_metadata_run(stream: rr.RecordingStream, result: RunResult, n: int) -> 
         "/metadata/parameters",
         f"# Parameters `{result.parameters_file}`\n\n```yaml\n{result.parameters_text}\n```\n",
     )
+    if result.rig_text:
+        _log_text(
+            stream,
+            "/metadata/rig",
+            f"# Rig `{result.rig}`\n\n```yaml\n{result.rig_text}\n```\n",
+        )
     metrics = dict(result.metrics)
     text = "# Metrics\n\n"
     if metrics:

@@ -32,6 +32,10 @@ class RunResult:
             then end at the last completed sample.
         view_start_s: where the plots of a viewer start [s]: after the
             start-up transient (the metrics' skip), 0 to show everything.
+        rig: the rig the scenario ran on (its `rig` key; '' when none applies).
+        rig_text: the rig file's text.
+        nfc_parameters: the parameter file the NFC compensated with ('plant':
+            the plant's own set; '' when no NFC ran).
     """
 
     scenario: str
@@ -45,3 +49,6 @@ class RunResult:
     metrics: Mapping[str, Any] = field(default_factory=dict)
     interrupted: bool = False
     view_start_s: float = 0.0
+    rig: str = ""
+    rig_text: str = ""
+    nfc_parameters: str = ""

@@ -161,6 +161,11 @@ class NFC:
 class AxisController:
     """The inner rate loop of one inner gimbal."""
 
+    pi_form: Literal["series", "parallel"] = _f(
+        "series",
+        "PI form (paper: not given; rig knob pi_form): series u = kp*(e + ki*sum(e)) or "
+        "parallel u = kp*e + ki*sum(e)",
+    )
     pi: PIGains = _sub(PIGains, "PI gains used without NFC (paper: Kp 3.568, Ki 0.0714)")
     pi_nfc: PIGains = field(
         default_factory=lambda: PIGains(3.0, 0.15),
@@ -312,6 +317,19 @@ class Scenario:
         "parameter file: a path relative to the scenario file, or a shipped name "
         "under models/params (default: the paper's Table 2)",
     )
+    rig: str = _f(
+        "paper_rig",
+        "rig file holding the settings the paper leaves unstated: a path relative to the "
+        "scenario file, or a shipped name under models/rigs (default: the paper's rig); "
+        "keys the scenario sets itself override the rig's",
+    )
+    nfc_parameters: str = _f(
+        "twin_identified",
+        "the model the NFC compensates with (rig knob nfc_model): a parameter file (a path "
+        "relative to the scenario file, or a shipped name under models/params; default: the "
+        "model identified on the twin's Eq. 7 runs) or 'plant' (the scenario's own parameter "
+        "file: an exact model)",
+    )
     turntable: Turntable = _sub(Turntable, "carrier motion")
     controller: Controller = _sub(Controller, "inner rate loops")
     gyro: GyroModel = _sub(GyroModel, "gyro model")
@@ -328,6 +346,20 @@ class Scenario:
     def parameters_path(self) -> Path:
         """The parameter file: relative to the scenario's folder, or a shipped name."""
         return resolve_parameters(self.parameters, self.source)
+
+    @property
+    def rig_path(self) -> Path:
+        """The rig file: relative to the scenario's folder, or a shipped name."""
+        from isp_twin.rig import resolve_rig
+
+        return resolve_rig(self.rig, self.source)
+
+    @property
+    def nfc_parameters_path(self) -> Path | None:
+        """The NFC's parameter file, or None when it compensates with the plant's own set."""
+        if self.nfc_parameters == "plant":
+            return None
+        return resolve_parameters(self.nfc_parameters, self.source, key="nfc_parameters")
 
     @property
     def skip_s(self) -> float:
@@ -349,8 +381,8 @@ class Scenario:
         return dataclasses.replace(self, controller=Controller(**axes))
 
 
-def resolve_parameters(value: str, source: Path | None) -> Path:
-    """Resolve the `parameters` key (see `Scenario.parameters_path`)."""
+def resolve_parameters(value: str, source: Path | None, key: str = "parameters") -> Path:
+    """Resolve the `parameters` key (see `Scenario.parameters_path`), or another key naming a parameter file."""
     if value == "paper_table2":
         return default_parameters_path()
     path = Path(value)
@@ -365,8 +397,7 @@ def resolve_parameters(value: str, source: Path | None) -> Path:
             return c
     available = sorted(p.stem for p in shipped.glob("*.yaml"))
     raise ResourceNotFound(
-        f"{source or 'scenario'}: parameters: file '{value}' not found; "
-        f"shipped: {', '.join(available)}"
+        f"{source or 'scenario'}: {key}: file '{value}' not found; shipped: {', '.join(available)}"
     )
 
 
@@ -498,8 +529,14 @@ def _check_object(obj, raw, where: str) -> None:
 
 def parse_scenario(raw: Any, source: str | Path = "<scenario>", text: str = "") -> Scenario:
     """Build a `Scenario` from parsed YAML; errors name `source` and the key path."""
+    from isp_twin.rig import load_rig, resolve_rig
+
     source_path = Path(source) if not str(source).startswith("<") else None
-    scenario = _build(Scenario, raw if raw is not None else {}, f"{source}: ")
+    raw = raw if raw is not None else {}
+    scenario = _build(Scenario, raw, f"{source}: ")
+    # The rig's settings fill the keys the file leaves unset (the file's own keys win).
+    rig = load_rig(resolve_rig(scenario.rig, source_path))
+    scenario = _build(Scenario, rig.fill(raw, scenario), f"{source}: ")
     if scenario.name and (set(scenario.name) & {"/", "\\", "\0"} or scenario.name in (".", "..")):
         # The name becomes the file name of the default recording.
         raise ScenarioError(

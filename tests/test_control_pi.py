@@ -1,4 +1,4 @@
-"""The PI block: its series form, zero steady-state error, anti-windup."""
+"""The PI block: its series and parallel forms, zero steady-state error, anti-windup."""
 
 import math
 
@@ -12,6 +12,18 @@ def test_output_follows_the_series_form_for_a_constant_error():
     # u[k] = kp*(e + ki*(k+1)*e) for a constant error e
     outs = [pi.step(3.0) for _ in range(5)]
     assert outs == pytest.approx([2.0 * (3.0 + 0.1 * (k + 1) * 3.0) for k in range(5)])
+
+
+def test_output_follows_the_parallel_form_for_a_constant_error():
+    pi = PIController(kp=2.0, ki=0.1, form="parallel")
+    # u[k] = kp*e + ki*(k+1)*e: the integral gain does not scale with kp
+    outs = [pi.step(3.0) for _ in range(5)]
+    assert outs == pytest.approx([2.0 * 3.0 + 0.1 * (k + 1) * 3.0 for k in range(5)])
+
+
+def test_an_unknown_form_is_refused():
+    with pytest.raises(ValueError, match="series"):
+        PIController(kp=1.0, ki=0.1, form="ideal")
 
 
 def test_zero_steady_state_error_on_a_first_order_plant_with_a_disturbance():

@@ -8,7 +8,14 @@ import pytest
 from isp_twin.axis_model import simulate
 from isp_twin.cli import main
 from isp_twin.errors import ParameterError
-from isp_twin.experiment import EQ7, INNER_STOP_DEG, PAPER_SET, generate_openloop, generate_set
+from isp_twin.experiment import (
+    EQ7,
+    INNER_STOP_DEG,
+    PAPER_SET,
+    generate_openloop,
+    generate_set,
+    paper_set,
+)
 from isp_twin.identification import regime_visits
 from isp_twin.measured import load_measured
 from isp_twin.units import DEG
@@ -57,6 +64,21 @@ def test_paper_set_visits_every_regime_without_reaching_a_stop(paper_params):
         assert np.abs(d.angle).max() < INNER_STOP_DEG * DEG
     visits = regime_visits(generate_set(paper_params, gyro_noise_deg_s=0, resolver_lsb_deg=0))
     assert (visits >= 400).all()
+
+
+def test_inner_el_set_visits_every_regime_without_reaching_a_stop(paper_params):
+    runs = generate_set(
+        paper_params, "inner_el", paper_set("inner_el"), gyro_noise_deg_s=0, resolver_lsb_deg=0
+    )
+    for d in runs:
+        assert np.abs(d.angle).max() < INNER_STOP_DEG * DEG
+    assert (regime_visits(runs) >= 400).all()
+
+
+def test_the_inner_az_set_drives_inner_el_into_a_stop(paper_params):
+    # Why INNER_EL_SET exists: the elevation's mirrored half-planes drift the other way.
+    runs = generate_set(paper_params, "inner_el", PAPER_SET, gyro_noise_deg_s=0, resolver_lsb_deg=0)
+    assert max(np.abs(d.angle).max() for d in runs) == pytest.approx(INNER_STOP_DEG * DEG)
 
 
 def test_plain_eq7_reaches_the_stop(paper_params):

@@ -479,6 +479,63 @@ for sid in CLOSED_EDITS:
         extra = ("--no-recording",) if command == "run" else ("-n", "1", "--jobs", "1")
         case(f"scenario-{sid}-{command}", command, f"{{W}}/closed_{sid}.yaml", *extra)
 
+# ---------------------------------------------------------------- rig files
+# Each case edits the shipped paper rig once; a closed-loop scenario names it.
+RIG_EDITS = {
+    "unknown-knob-key": ("    unit: Hz\n", "    unitt: Hz\n", "unitt: unknown key"),
+    "value-out-of-range": ("    value: 65.0\n", "    value: 150.0\n", "gyro_scale.value"),
+    "value-nan": ("    value: 65.0\n", "    value: .nan\n", "gyro_scale.value"),
+    "value-text": ("    value: 200.0\n", "    value: fast\n", "gyro_bandwidth.value"),
+    "unknown-cell": (
+        "cells: [table4_1_6Hz_pi]\n",
+        "cells: [table4_1_6Hz_pie]\n",
+        "table4_1_6Hz_pie",
+    ),
+    "unknown-scenario-key": ("[gyro.bandwidth_hz]", "[gyro.bandwith_hz]", "bandwith_hz"),
+    "provenance-unknown": ("provenance: assumption", "provenance: guess", "provenance"),
+    "range-reversed": ("range: [100.0, 1000.0]", "range: [1000.0, 100.0]", "gyro_bandwidth.range"),
+    "range-one-number": ("range: [100.0, 1000.0]", "range: 100.0", "gyro_bandwidth.range"),
+    "key-set-twice": ("keys: [gyro.noise_deg_s]", "keys: [gyro.bandwidth_hz]", "also set by"),
+    "missing-note": ("    note: Below one gyro count", "    nota: Below one gyro count", "nota"),
+    "fit-on-assumption": (
+        "    provenance: assumption\n    note: >-\n      First-order",
+        "    provenance: assumption\n    fit: {cells: [table4_1_6Hz_pi], values: [200.0]}\n    note: >-\n      First-order",
+        "only a calibrated knob",
+    ),
+    "fit-value-out-of-range": ("values: [50.0, 60.0,", "values: [5.0, 60.0,", "values[0]"),
+    "calibrated-without-cells": (
+        "    cells: [table4_0_5Hz_half_pi, table4_0_5Hz_pi, table5_pi, table5_pi_nfc]\n",
+        "",
+        "start_angle_held.cells",
+    ),
+    "when-unknown-key": (
+        "when: {follower.enabled: false}",
+        "when: {follower.enable: false}",
+        "enable",
+    ),
+    "top-level-list": ("name: paper_rig\n", "- name: paper_rig\n", "rig"),
+    "yaml-syntax": ("keys: [gyro.noise_deg_s]", "keys: [gyro.noise_deg_s", "not valid YAML"),
+}
+for rid in RIG_EDITS:
+    for command in ("run", "campaign"):
+        extra = ("--no-recording",) if command == "run" else ("-n", "1", "--jobs", "1")
+        case(
+            f"rig-{rid}-{command}",
+            command,
+            f"{{W}}/closed_rig_{rid}.yaml",
+            *extra,
+            expect=RIG_EDITS[rid][2],
+        )
+case("rig-missing", "run", "{W}/closed_rig_missing.yaml", "--no-recording", expect="rig")
+for bad in ("binary", "latin1", "nul", "directory", "unreadable"):
+    case(
+        f"rig-unreadable-{bad}",
+        "run",
+        f"{{W}}/closed_rig_bad_{bad}.yaml",
+        "--no-recording",
+        expect=INPUT_MESSAGES[bad],
+    )
+
 # ---------------------------------------------------------------- data files
 DATA_FILES = {
     "nan-row": "t,u,omega,theta\n"
@@ -573,6 +630,16 @@ def _build(root: Path) -> Path:
     for sid, (old, new) in CLOSED_EDITS.items():
         assert old in CLOSED_LOOP, sid
         (world / f"closed_{sid}.yaml").write_text(CLOSED_LOOP.replace(old, new, 1))
+    from isp_twin.resources import resource_root
+
+    rig = (resource_root() / "models" / "rigs" / "paper_rig.yaml").read_text()
+    for rid, (old, new, _) in RIG_EDITS.items():
+        assert old in rig, rid
+        (world / f"rig_{rid}.yaml").write_text(rig.replace(old, new, 1))
+        (world / f"closed_rig_{rid}.yaml").write_text(f"{CLOSED_LOOP}rig: rig_{rid}.yaml\n")
+    (world / "closed_rig_missing.yaml").write_text(f"{CLOSED_LOOP}rig: no_such_rig\n")
+    for bad in ("binary", "latin1", "nul", "directory", "unreadable"):
+        (world / f"closed_rig_bad_{bad}.yaml").write_text(f"{CLOSED_LOOP}rig: bad_{bad}.yaml\n")
     for did, text in DATA_FILES.items():
         (world / f"data_{did}.csv").write_text(text, encoding="utf-8")
     (world / "garbage.mat").write_bytes(b"MATLAB 5.0 MAT-file" + bytes(200))

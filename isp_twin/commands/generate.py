@@ -8,10 +8,10 @@ from isp_twin.commands.generate_reference import add_reference_options, execute_
 from isp_twin.experiment import (
     EQ7,
     GYRO_NOISE_DEG_S,
-    PAPER_SET,
     RESOLVER_LSB_DEG,
     check_excitation,
     generate_openloop,
+    paper_set,
 )
 from isp_twin.measured import save_measured
 from isp_twin.outputs import check_folder, check_outputs, transaction
@@ -27,7 +27,8 @@ def add_parser(sub) -> None:
             "Simulate the paper's open-loop identification experiment (Eq. 7: "
             "u = A cos(2 pi f t) + offset digits) with known parameters, add gyro noise and "
             "resolver quantization, and write canonical CSV files (t, u, omega [deg/s], theta [deg]). "
-            "--set paper writes the four variations that visit all regimes; --set eq7 one run "
+            "--set paper writes the four variations that visit all regimes without reaching a "
+            "stop (their own set for inner_el); --set eq7 one run "
             "with the options below."
         ),
     )
@@ -63,7 +64,7 @@ def execute(args) -> int:
                 e.initial_angle_deg,
                 e.name,
             )
-            for e in PAPER_SET
+            for e in paper_set(args.axis)
         ]
     else:
         runs = [(args.amplitude, args.freq, args.offset, args.samples, args.initial_angle, "eq7")]

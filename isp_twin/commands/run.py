@@ -119,6 +119,8 @@ def execute(args: argparse.Namespace) -> int:
         import isp_twin.twin  # noqa: F401
     print(f"scenario {name}  ({scenario.source})")
     print(f"parameters {params_path}  seed {seed}")
+    if scenario.kind == "closed_loop":
+        print(f"rig {scenario.rig}  ({scenario.rig_path})")
 
     if scenario.kind == "open_loop":
         result, payload = _run_open_loop(scenario, params, params_path, name, seed, args.engine)
@@ -161,6 +163,8 @@ def _run_closed_loop(scenario, params, params_path, name, seed):
     payload = {
         "scenario": name,
         "parameters_file": str(params_path),
+        "rig": result.rig,
+        "nfc_parameters": result.nfc_parameters,
         "seed": seed,
         "metrics": metrics,
         "units": CLOSED_LOOP_UNITS,

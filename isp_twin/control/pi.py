@@ -1,7 +1,8 @@
 """Discrete PI controller of the inner rate loops (paper Sect. 4.1).
 
 The form, per sample k (T = 1 ms), with error e = reference - measurement,
-is the series ("ideal") PI with a per-sample integrator::
+is by default (rig knob pi_form) the series ("ideal") PI with a per-sample
+integrator::
 
     s[k] = s[k-1] + e[k]                (integrator: a plain sum, per sample)
     u[k] = kp * (e[k] + ki * s[k])
@@ -27,24 +28,31 @@ __all__ = ["PIController"]
 
 
 class PIController:
-    """Discrete series PI, ``u = kp*(e + ki*sum(e))``, with conditional anti-windup.
+    """Discrete PI, series ``u = kp*(e + ki*sum(e))`` or parallel ``u = kp*e + ki*sum(e)``,
+    with conditional anti-windup.
 
     Args:
         kp: proportional gain [output unit per input unit].
-        ki: integral gain relative to kp, per sample [1 per sample].
+        ki: integral gain per sample: relative to kp (series) or absolute
+            (parallel) [1 per sample, or output unit per input unit per sample].
         limit: output magnitude at which the integrator stops winding up
             (math.inf for none).
+        form: "series" (the twin's reading, rig knob pi_form) or "parallel".
     """
 
-    def __init__(self, kp: float, ki: float, limit: float = math.inf):
+    def __init__(self, kp: float, ki: float, limit: float = math.inf, form: str = "series"):
         if not (math.isfinite(kp) and math.isfinite(ki)):
             raise ValueError(f"PI gains must be finite, got kp={kp}, ki={ki}")
         if ki < 0 or kp < 0:
             raise ValueError(f"PI gains must be >= 0, got kp={kp}, ki={ki}")
         if not limit > 0:
             raise ValueError(f"PI output limit must be > 0, got {limit}")
+        if form not in ("series", "parallel"):
+            raise ValueError(f"PI form must be 'series' or 'parallel', got {form!r}")
         self.kp = float(kp)
         self.ki = float(ki)
+        self.form = form
+        self._series = form == "series"
         self.limit = float(limit)
         self.reset()
 
@@ -52,13 +60,18 @@ class PIController:
         """Zero the integrator."""
         self.integral = 0.0
 
+    def _output(self, error: float, integral: float) -> float:
+        if self._series:
+            return self.kp * (error + self.ki * integral)
+        return self.kp * error + self.ki * integral
+
     def step(self, error: float) -> float:
         """One sample: the output for the error ``e[k]``."""
         s = self.integral + error
-        u = self.kp * (error + self.ki * s)
+        u = self._output(error, s)
         if abs(u) > self.limit and u * error > 0.0:
             # Saturated and the error pushes further out: freeze the integrator.
-            u = self.kp * (error + self.ki * self.integral)
+            u = self._output(error, self.integral)
         else:
             self.integral = s
         return u

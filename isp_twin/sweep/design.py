@@ -32,12 +32,13 @@ Parameter uncertainty: draw d perturbs every parameter that has a ci95 in
 the file by a normal deviate of standard deviation ci95/1.96 (the ci95 is
 the half-width of a normal 95 % interval), the pole kept inside (0, 1) and
 the others positive. Only the plant (the twin) gets the drawn set; the NFC
-keeps compensating with the file's nominal values, as on hardware the
+keeps compensating with the scenario's `nfc_parameters` (the identified model
+by default; 'plant': the file's nominal values), as on hardware the
 controller holds the identified model while the plant differs from it.
 
 Each run's identity is the SHA-256 of its inputs (the full scenario with
-every default, the parameter file's text, the drawn values, the seed and the
-package version): `RunSpec.key`, the results store's key.
+every default, the parameter file's text, the NFC model file's text, the
+drawn values, the seed and the package version): `RunSpec.key`, the results store's key.
 """
 
 from __future__ import annotations
@@ -169,6 +170,17 @@ def _file_digest(path: Path) -> str:
         raise ResourceNotFound(f"{path}: cannot read the parameter file ({exc.strerror})") from None
 
 
+def _nfc_digest(scenario_raw: Mapping[str, Any], source: Path | None) -> str | None:
+    """SHA-256 of the NFC's parameter file (None for 'plant', the plant's own set)."""
+    from isp_twin.scenario import resolve_parameters
+
+    value = scenario_raw.get("nfc_parameters", "plant")
+    if value == "plant":
+        return None
+    src = Path(source) if source is not None else None
+    return _file_digest(resolve_parameters(value, src, key="nfc_parameters"))
+
+
 def make_run(
     index: int,
     scenario_raw: Mapping[str, Any],
@@ -187,6 +199,8 @@ def make_run(
         "version": __version__,
         "scenario": raw,
         "parameters_sha256": digest,
+        # The NFC's model file changes the numbers as much as the plant's.
+        "nfc_parameters_sha256": _nfc_digest(raw, scenario_source),
         "parameter_draw": parameter_draw,
         "seed": int(seed),
         "axis": axis,

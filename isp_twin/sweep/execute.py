@@ -98,7 +98,11 @@ def run_one(spec: RunSpec) -> RunOutcome:
     try:
         draw = json.dumps(spec.parameter_draw, sort_keys=True) if spec.parameter_draw else None
         plant, nominal = _parameters(spec.parameters, _mtime(spec.parameters), draw)
-        loop = ClosedLoop(scenario_of(spec), params=plant, seed=spec.seed, nfc_params=nominal)
+        scenario = scenario_of(spec)
+        # The NFC compensates with the scenario's nfc_parameters; 'plant' is the
+        # parameter file's nominal set, which a drawn plant departs from.
+        nfc = nominal if scenario.nfc_parameters == "plant" else None
+        loop = ClosedLoop(scenario, params=plant, seed=spec.seed, nfc_params=nfc)
         loop.run()
         metrics = dict(loop.result().metrics)
         status, error = "ok", None
