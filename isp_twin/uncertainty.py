@@ -24,8 +24,8 @@ flips the NFC's benefit: `--oat` adds a one-at-a-time sweep (each knob at its
 low and high end, the others and the plant nominal) that answers exactly
 that, per setting.
 
-The plausible ranges live in one place, `rig_knob_ranges` (to be read from
-the rig file, models/rigs/, once it exists).
+The plausible ranges are the scenario's rig file's (models/rigs/, `isp_twin.rig`):
+every knob with a `range` is drawn, where its `when` conditions hold.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ import numpy as np
 
 from isp_twin.errors import ScenarioError
 from isp_twin.paper import TABLE5, TABLE6, relative_reduction
+from isp_twin.rig import Rig, load_rig
 from isp_twin.scenario import Scenario, parse_scenario, scenario_to_raw
 from isp_twin.sweep.design import RunSpec, _file_digest, _set_key, draw_parameters, make_run
 from isp_twin.sweep.store import RunOutcome
@@ -106,52 +107,21 @@ def _get_key(raw: Mapping, path: str) -> Any:
     return node
 
 
-#: Conditions: the follower's settings act only when the outer gimbals follow.
-_FOLLOWING = {"follower.enabled": True}
-_HELD = {"follower.enabled": False}
+def rig_knob_ranges(rig: Rig) -> tuple[KnobRange, ...]:
+    """The rig's knobs that have a plausible range, as `KnobRange`s (the rig file is the source).
 
-
-def _inner(key: str) -> tuple[str, ...]:
-    return (f"controller.inner_az.{key}", f"controller.inner_el.{key}")
-
-
-def rig_knob_ranges() -> tuple[KnobRange, ...]:
-    """The unstated settings of the paper's rig and their plausible ranges.
-
-    Interim single source until the rig file (models/rigs/paper_rig.yaml,
-    issue 10 item 1) and its loader land; the ranges are that file's
-    declared plausible ranges (the follower's gains and bound apply, here,
-    only where the follower is on: with it off they do not act). Settings
-    with a choice instead of a range (PI form, the NFC's model) are not drawn.
+    Named settings (``choices``: the PI form, the NFC's model) are not drawn:
+    the scenario's choice stays. A knob is drawn as an integer when its value is one.
     """
-    return (
-        KnobRange("gyro_scale", ("gyro.scale_count_per_deg_s",), 32.5, 100.0, False,
-                  "count/(deg/s)", "calibrated"),
-        KnobRange("gyro_bandwidth", ("gyro.bandwidth_hz",), 100.0, 1000.0, False, "Hz"),
-        KnobRange("gyro_noise", ("gyro.noise_deg_s",), 0.002, 0.05, False, "deg/s"),
-        KnobRange("resolver_resolution", ("resolver.resolution_deg",), 360 / 2**20, 360 / 2**16,
-                  False, "deg"),
-        KnobRange("resolver_rate_window", ("resolver.rate_window",), 3, 20, True, "samples"),
-        KnobRange("notch_freq", _inner("notch.freq_hz"), 80.0, 450.0, False, "Hz", "calibrated"),
-        KnobRange("notch_q", _inner("notch.q"), 1.0, 8.0, False, "-", "calibrated"),
-        KnobRange("notch_depth", _inner("notch.depth"), 0.01, 0.3, False, "-", "calibrated"),
-        KnobRange("bound", _inner("bound_digits"), 1000.0, 3000.0, False, "digits"),
-        KnobRange("nfc_rest_rate", _inner("nfc.rest_rate_deg_s"), 0.0, 0.2, False, "deg/s"),
-        KnobRange("follower_kp", ("follower.kp_digit_per_deg",), 500.0, 4000.0, False,
-                  "digits/deg", "calibrated", _FOLLOWING),
-        KnobRange("follower_ki", ("follower.ki_digit_per_deg",), 0.0, 4.0, False,
-                  "digits/deg/sample", "calibrated", _FOLLOWING),
-        KnobRange("follower_kd", ("follower.kd_digit_per_deg_s",), 0.0, 40.0, False,
-                  "digits/(deg/s)", "calibrated", _FOLLOWING),
-        KnobRange("follower_bound", ("follower.bound_digits",), 1000.0, 3000.0, False, "digits",
-                  "assumption", _FOLLOWING),
-        KnobRange("inner_az_center", ("follower.inner_az_center_deg",), -2.5, 0.0, False, "deg",
-                  "calibrated", _FOLLOWING),
-        KnobRange("inner_el_center", ("follower.inner_el_center_deg",), 0.0, 2.5, False, "deg",
-                  "calibrated", _FOLLOWING),
-        KnobRange("start_angle_held", ("initial_angles_deg.inner_az",), -1.5, 0.0, False, "deg",
-                  "calibrated", _HELD),
-    )  # fmt: skip
+    out = []
+    for k in rig.knobs.values():
+        if k.range is None:
+            continue
+        integer = isinstance(k.value, int) and not isinstance(k.value, bool)
+        lo, hi = (int(x) for x in k.range) if integer else (float(x) for x in k.range)
+        when = dict(k.when) or None
+        out.append(KnobRange(k.name, tuple(k.keys), lo, hi, integer, k.unit, k.provenance, when))
+    return tuple(out)
 
 
 # ---------------------------------------------------------------- design
@@ -478,7 +448,8 @@ def run_uncertainty(
         jobs: worker processes (1: in this process).
         oat: also the one-at-a-time sweep over each knob's range.
         oat_seeds: noise seeds per one-at-a-time point.
-        knobs: the ranges (default: `rig_knob_ranges`, those that apply).
+        knobs: the ranges (default: the scenario's rig file, `rig_knob_ranges`);
+            only those whose conditions hold for the scenario are drawn.
         first_seed: noise seed of draw 0 (default: the scenario's).
         on_progress: called with (runs done, runs total).
 
@@ -492,7 +463,9 @@ def run_uncertainty(
         raise ScenarioError(f"--uncertainty needs at least 2 draws, got {n_draws}")
     if scenario.kind != "closed_loop":
         raise ScenarioError(f"{scenario.source}: kind: uncertainty needs a closed_loop scenario")
-    knobs = _applicable(scenario, knobs if knobs is not None else rig_knob_ranges())
+    if knobs is None:
+        knobs = rig_knob_ranges(load_rig(scenario.rig_path))
+    knobs = _applicable(scenario, knobs)
     path = Path(params_path or scenario.parameters_path)
     runs = uncertainty_runs(scenario, n_draws, seed, path, knobs, axis, first_seed)
     seeds = range(scenario.seed, scenario.seed + oat_seeds)

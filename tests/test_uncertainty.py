@@ -8,6 +8,7 @@ import pytest
 import yaml
 
 from isp_twin.cli import main
+from isp_twin.rig import load_rig
 from isp_twin.scenario import load_scenario
 from isp_twin.sweep.design import scenario_of
 from isp_twin.uncertainty import (
@@ -42,8 +43,22 @@ def _get(raw, path):
     return raw
 
 
+def _knobs(scenario):
+    return rig_knob_ranges(load_rig(scenario.rig_path))
+
+
+def test_the_rig_files_ranged_knobs_are_the_draws_inputs(short):
+    rig = load_rig(short.rig_path)
+    knobs = {k.name: k for k in _knobs(short)}
+    assert set(knobs) == {n for n, k in rig.knobs.items() if k.range is not None}
+    for name, k in knobs.items():
+        assert (k.low, k.high) == tuple(rig.knobs[name].range)
+        assert k.keys == tuple(rig.knobs[name].keys)
+    assert knobs["resolver_rate_window"].integer and not knobs["gyro_scale"].integer
+
+
 def test_each_draw_sets_every_key_of_a_knob_inside_its_range_for_both_controllers(short):
-    knobs = [k for k in rig_knob_ranges() if k.applies({"follower": {"enabled": True}})]
+    knobs = [k for k in _knobs(short) if k.applies({"follower": {"enabled": True}})]
     runs = uncertainty_runs(short, 8, 3, short.parameters_path, knobs)
     assert len(runs) == 16
     for d in range(8):
@@ -69,18 +84,16 @@ def test_each_draw_sets_every_key_of_a_knob_inside_its_range_for_both_controller
     assert not {r.key for r in other} & {r.key for r in runs}
 
 
-def test_knobs_apply_only_where_their_condition_holds():
-    by_name = {k.name: k for k in rig_knob_ranges()}
+def test_knobs_apply_only_where_their_condition_holds(short):
+    by_name = {k.name: k for k in _knobs(short)}
     follower_on, held = {"follower": {"enabled": True}}, {"follower": {"enabled": False}}
-    assert by_name["inner_az_center"].applies(follower_on)
-    assert not by_name["inner_az_center"].applies(held)
     assert by_name["start_angle_held"].applies(held)
     assert not by_name["start_angle_held"].applies(follower_on)
     assert by_name["gyro_scale"].applies(held) and by_name["gyro_scale"].applies(follower_on)
 
 
 def test_the_one_at_a_time_design_moves_one_knob_to_each_end_and_nothing_else(short):
-    knobs = [k for k in rig_knob_ranges() if k.name in ("gyro_noise", "notch_freq")]
+    knobs = [k for k in _knobs(short) if k.name in ("gyro_noise", "notch_freq")]
     runs = oat_runs(short, short.parameters_path, knobs, seeds=[1, 2])
     assert len(runs) == (1 + 2 * len(knobs)) * 2 * 2
     nominal = {r.knobs["label"]: r.scenario_raw for r in runs if r.knobs["knob"] is None}
@@ -138,7 +151,7 @@ def test_the_one_at_a_time_verdict_separates_a_lost_sign_from_a_miss_of_the_pape
 
 
 def test_uncertainty_runs_reproducibly_and_reports_a_band_around_its_draws(short):
-    knobs = [k for k in rig_knob_ranges() if k.name in ("gyro_noise", "follower_kp")]
+    knobs = [k for k in _knobs(short) if k.name in ("gyro_noise", "follower_kp")]
     a = run_uncertainty(short, 4, seed=5, knobs=knobs, oat=True, oat_seeds=1)
     b = run_uncertainty(short, 4, seed=5, knobs=knobs)
     assert a.failed == 0 and len(a.j_pi) == 4
