@@ -29,9 +29,11 @@ from pathlib import Path
 import numpy as np
 
 from isp_twin.atomic import write_text_atomic
-from isp_twin.campaign import TABLE4_SCENARIOS, compare_with_paper, comparison_markdown
+from isp_twin.calibration import calibration_markdown, evaluate_cells
+from isp_twin.campaign import TABLE4_SCENARIOS
 from isp_twin.closed_loop import run_scenario
 from isp_twin.paper import TABLE4_ACTUAL, TABLE5, TABLE6, relative_reduction
+from isp_twin.rig import resolve_rig
 from isp_twin.scenario import Scenario, load_scenario
 
 Knobs = tuple[tuple[str, float], ...]
@@ -186,7 +188,7 @@ def main() -> None:
         scan_scale(args.scan_scale, args.runs, args.jobs)
         return
     start = time.perf_counter()
-    text = comparison_markdown(compare_with_paper(args.runs, args.jobs))
+    text = calibration_markdown(evaluate_cells(resolve_rig("paper_rig"), args.runs, 1, args.jobs))
     elapsed = time.perf_counter() - start
     write_text_atomic(args.output, text)
     print(text)

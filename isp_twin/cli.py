@@ -20,7 +20,16 @@ from isp_twin.outputs import is_stdout, stdout_for_outputs
 
 __all__ = ["main", "build_parser"]
 
-SUBCOMMANDS = ("run", "identify", "diagnose", "generate", "campaign", "report", "sweep")
+SUBCOMMANDS = (
+    "run",
+    "identify",
+    "diagnose",
+    "generate",
+    "campaign",
+    "report",
+    "calibrate",
+    "sweep",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

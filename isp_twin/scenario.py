@@ -197,7 +197,9 @@ class GyroModel:
     """The inner gimbals' rate gyros (see `isp_twin.control.gyro`)."""
 
     scale_count_per_deg_s: float = _f(
-        65.0, "gyro counts per deg/s (calibrated, docs/calibration.md)", exclusive_min=0.0
+        70.0,
+        "gyro counts per deg/s (rig knob gyro_scale, fitted: docs/calibration.md)",
+        exclusive_min=0.0,
     )
     noise_deg_s: float = _f(0.01, "white noise std per sample [deg/s]", min=0.0)
     bandwidth_hz: float = _f(200.0, "first-order bandwidth [Hz]", exclusive_min=0.0)

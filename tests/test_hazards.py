@@ -315,18 +315,25 @@ def test_campaign_json_states_its_units(tmp_path, capsys):
 
 
 def test_report_json_states_its_units():
-    from isp_twin.campaign import CampaignResult, Comparison, VariantResult
-    from isp_twin.commands.report import comparison_json
+    from isp_twin.calibration import CellResult, Evaluation, cell_roles, evaluation_json
     from isp_twin.metrics import campaign_stats
+    from isp_twin.paper import PAPER_CELLS
+    from isp_twin.rig import load_rig, resolve_rig
 
-    variant = VariantResult(campaign_stats([10.0, 12.0]), (0.1, 0.2), (0.05, 0.06))
-    result = CampaignResult("x", "p.yaml", "inner_az", (1, 2), {"PI": variant, "PI+NFC": variant})
-    c = Comparison({(0.5, 90.0): campaign_stats([10.0, 11.0])}, result, result, 2)
-    payload = json.loads(json.dumps(comparison_json(c)))
-    cell = payload["table4"][0]
-    assert set(cell) - {"PI"} <= set(payload["units"])
-    assert set(cell["PI"]) <= set(payload["units"])
-    assert payload["table5"]["metrics"]["inner_az"]["PI"]["average"] == 11.0
+    roles = cell_roles(load_rig(resolve_rig("paper_rig")))
+    stats = campaign_stats([10.0, 12.0])
+    cells = {
+        n: CellResult(
+            c, roles[n], stats, 0.5, 0.1, stats if c.nfc else None, 0.1 if c.nfc else None
+        )
+        for n, c in PAPER_CELLS.items()
+    }
+    payload = json.loads(json.dumps(evaluation_json(Evaluation("paper_rig", {}, 2, 1, cells))))
+    for cell in payload["cells"].values():
+        numbers = {k for k, v in cell.items() if isinstance(v, float)}
+        assert numbers <= set(payload["units"])
+        assert set(cell["twin"]) <= set(payload["units"])
+    assert payload["cells"]["table5_pi"]["twin"]["average"] == 11.0
 
 
 # ---------------------------------------------------------------- progress

@@ -483,8 +483,8 @@ for sid in CLOSED_EDITS:
 # Each case edits the shipped paper rig once; a closed-loop scenario names it.
 RIG_EDITS = {
     "unknown-knob-key": ("    unit: Hz\n", "    unitt: Hz\n", "unitt: unknown key"),
-    "value-out-of-range": ("    value: 65.0\n", "    value: 150.0\n", "gyro_scale.value"),
-    "value-nan": ("    value: 65.0\n", "    value: .nan\n", "gyro_scale.value"),
+    "value-out-of-range": ("    value: 70.0\n", "    value: 150.0\n", "gyro_scale.value"),
+    "value-nan": ("    value: 70.0\n", "    value: .nan\n", "gyro_scale.value"),
     "value-text": ("    value: 200.0\n", "    value: fast\n", "gyro_bandwidth.value"),
     "unknown-cell": (
         "cells: [table4_1_6Hz_pi]\n",

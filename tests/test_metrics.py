@@ -25,6 +25,32 @@ def test_errors_in_deg_s_rms_of_a_sine():
     assert m["isolation_percent"] == pytest.approx(50 / math.pi, rel=1e-3)
 
 
+def test_isolation_is_the_ratio_of_peaks_not_of_means():
+    """Eq. 10 takes max|omega_1| / max|omega|: spikes set it, however short."""
+    t = np.arange(0, 2.3, 1e-3)  # not a whole number of periods
+    w = DEG * np.sin(2 * math.pi * 0.7 * t)
+    w[1500] = 3.0 * DEG  # the carrier's peak is this one sample
+    w1 = 0.1 * DEG * np.sin(2 * math.pi * 5.0 * t)
+    w1[700] = -0.6 * DEG  # a negative burst: its magnitude counts
+    assert isolation_percent(w1, w) == pytest.approx(20.0)
+    # a mean-based ratio of the same signals is far from it
+    assert 100 * np.mean(np.abs(w1)) / np.mean(np.abs(w)) < 12.0
+
+
+def test_isolation_of_a_partial_period_uses_the_window_peak():
+    # omega = A sin over a quarter period peaks at A only at the window's end;
+    # omega_1 = B t^2 peaks at its end too: J = B T^2 / A.
+    t = np.linspace(0.0, 0.5, 501)
+    a, b = 2.0 * DEG, 0.4 * DEG
+    w = a * np.sin(2 * math.pi * 0.5 * t)
+    w1 = b * t**2
+    assert isolation_percent(w1, w) == pytest.approx(100 * b * 0.25 / a)
+    m = axis_metrics(w1, w)
+    assert m["max_abs_error_deg_s"] == pytest.approx(0.1)
+    # RMS of B t^2 over [0, T]: B T^2 / sqrt(5)
+    assert m["rms_error_deg_s"] == pytest.approx(0.1 / math.sqrt(5), rel=2e-3)
+
+
 def test_only_the_steady_state_window_counts():
     t = np.arange(0, 4, 1e-3)
     w = DEG * np.ones_like(t)

