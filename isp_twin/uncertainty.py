@@ -3,7 +3,9 @@
 `isp-twin campaign SCENARIO --uncertainty N` runs N draws. Draw d gets
 
 * a plant drawn from the parameter file's ci95 (`isp_twin.sweep.design.draw_parameters`,
-  seeded by (seed, d)); the NFC keeps the file's nominal model, as on hardware;
+  seeded by (seed, d)); the NFC keeps the scenario's model (`nfc_parameters`:
+  the identified one by default, else the file's nominal set), as a
+  controller holds its identified model while the real plant differs;
 * every unstated rig setting (`KnobRange`) drawn uniformly from its plausible
   range (seeded by (seed, d, 1)), the same value on both inner axes;
 * noise seed = the scenario's seed + d;
@@ -66,6 +68,8 @@ PAPER_REDUCTION = {
 }
 #: The NFC reduction may differ from the paper's by this much [percentage points] (issue 10).
 REDUCTION_TOLERANCE = 10.0
+#: Fewer draws than this mark no correlation significant (rho = +-1 is common by chance).
+MIN_DRAWS_FOR_SIGNIFICANCE = 10
 #: Percentiles of the band: a central 90 % interval.
 BAND_PERCENTILES = (5.0, 95.0)
 
@@ -175,10 +179,13 @@ def uncertainty_runs(
     Each run's knobs hold ``label``, ``draw`` and every drawn rig value; its
     ``parameter_draw`` the drawn plant.
     """
-    import yaml
+    from isp_twin.errors import ParameterError
+    from isp_twin.input_files import load_yaml
+    from isp_twin.parameters import load_parameters
 
     params_path = Path(params_path).resolve()
-    params_raw = yaml.safe_load(params_path.read_text()) or {}
+    load_parameters(params_path)  # a bad file stops here, naming the file and key
+    params_raw = load_yaml(params_path, "parameter file", ParameterError)[0] or {}
     if not draw_parameters(params_raw, seed, 0):
         raise ScenarioError(f"{params_path}: gives no ci95 to draw the plant from")
     digest = _file_digest(params_path)
@@ -419,7 +426,9 @@ def sensitivity(
                 continue
             res = spearmanr(x, y)
             rhos.append(float(res.statistic))
-            sig = sig or float(res.pvalue) < 0.05 / n_in
+            # below MIN_DRAWS_FOR_SIGNIFICANCE the p-value's normal approximation is meaningless
+            enough = len(x) >= MIN_DRAWS_FOR_SIGNIFICANCE
+            sig = sig or (enough and float(res.pvalue) < 0.05 / n_in)
         rows.append(SensitivityRow(name, rhos[0], rhos[1], rhos[2], sig))
     return tuple(sorted(rows, key=lambda r: -r.strength))
 
@@ -583,7 +592,12 @@ def format_uncertainty(res: UncertaintyResult, top: int = 12) -> str:
     lines += [
         "",
         f"sensitivity (Spearman rank correlation over the draws; * significant at 5 % after "
-        f"Bonferroni over {len(res.sensitivity)} inputs), strongest {min(top, len(res.sensitivity))}:",
+        f"Bonferroni over {len(res.sensitivity)} inputs), strongest {min(top, len(res.sensitivity))}"
+        + (
+            ":"
+            if len(res.j_pi) >= MIN_DRAWS_FOR_SIGNIFICANCE
+            else f" (fewer than {MIN_DRAWS_FOR_SIGNIFICANCE} draws: significance not judged):"
+        ),
         f"{'input':<28} {'rho J PI':>9} {'rho J NFC':>10} {'rho reduction':>14}",
     ]
     for r in res.sensitivity[:top]:

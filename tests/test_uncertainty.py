@@ -132,6 +132,9 @@ def test_rank_correlation_finds_a_monotone_nonlinear_input_and_ignores_noise():
     assert not by["idle"].significant
     assert math.isnan(by["const"].rho_pi) and not by["const"].significant
     assert rows[-1].name == "const"
+    # three draws can correlate perfectly by chance: never significant
+    few = sensitivity({"x": np.arange(3.0)}, (np.arange(3.0),) * 3)
+    assert few[0].rho_pi == pytest.approx(1.0) and not few[0].significant
 
 
 def _result(reduction, paper=41.8, failed=0):

@@ -145,6 +145,10 @@ def _uncertainty(args: argparse.Namespace, scenario) -> int:
     )
     inputs = [scenario.source, *([args.params] if args.params is not None else [])]
     check_outputs({"--json": args.json, "--plot": plot}, inputs)
+    if args.params is not None:
+        from isp_twin.parameters import load_parameters
+
+        load_parameters(args.params)  # a bad file stops before any output
     n_runs = 2 * args.uncertainty
     print(
         f"campaign {scenario.name}: uncertainty, {args.uncertainty} draws x (PI, PI+NFC)"
