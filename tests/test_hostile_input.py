@@ -527,6 +527,18 @@ for rid in RIG_EDITS:
             expect=RIG_EDITS[rid][2],
         )
 case("rig-missing", "run", "{W}/closed_rig_missing.yaml", "--no-recording", expect="rig")
+for command in ("calibrate", "report"):
+    case(
+        f"rig-value-out-of-range-{command}",
+        command,
+        "--rig",
+        "{W}/rig_value-out-of-range.yaml",
+        "-n",
+        "1",
+        expect="gyro_scale.value",
+    )
+    case(f"rig-missing-{command}", command, "--rig", "no_such_rig", "-n", "1", expect="rig")
+    case(f"runs-zero-{command}", command, "-n", "0", expect="--runs")
 for bad in ("binary", "latin1", "nul", "directory", "unreadable"):
     case(
         f"rig-unreadable-{bad}",
