@@ -55,6 +55,32 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--json", type=Path, default=None, metavar="PATH", help="also write the statistics as JSON"
     )
+    u = p.add_argument_group(
+        "uncertainty and sensitivity (docs/uncertainty.md)",
+        "With --uncertainty N, draw N plants from the parameter file's ci95 and the rig's "
+        "unstated settings from their plausible ranges, run each with PI and PI+NFC, and "
+        "report J as a mean with a 90 %% band, a sensitivity table and a PNG (-n is not used).",
+    )
+    u.add_argument("--uncertainty", type=int, default=None, metavar="N", help="number of draws")
+    u.add_argument(
+        "--uncertainty-seed", type=int, default=0, metavar="S", help="seed of the draws (default 0)"
+    )
+    u.add_argument(
+        "--oat",
+        action="store_true",
+        help="also each setting alone at the ends of its range (does the NFC gain survive?)",
+    )
+    u.add_argument(
+        "--oat-seeds", type=int, default=2, metavar="K", help="noise seeds per one-at-a-time point"
+    )
+    u.add_argument(
+        "--plot",
+        type=Path,
+        default=None,
+        metavar="PNG",
+        help="the plot (default: sweeps/<scenario>_uncertainty.png)",
+    )
+    u.add_argument("--no-plot", action="store_true", help="write no PNG")
     p.set_defaults(execute=execute)
 
 
@@ -70,6 +96,8 @@ def execute(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     if scenario.kind != "closed_loop":
         raise ScenarioError(f"{scenario.source}: kind: a campaign needs a closed_loop scenario")
+    if args.uncertainty is not None:
+        return _uncertainty(args, scenario)
     inputs = [scenario.source, *([args.params] if args.params is not None else [])]
     check_outputs({"--json": args.json}, inputs)
     params = load_parameters(args.params) if args.params is not None else None
@@ -100,4 +128,56 @@ def execute(args: argparse.Namespace) -> int:
             write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
         if not is_stdout(args.json):
             print(f"statistics written to {args.json}")
+    return 0
+
+
+def _uncertainty(args: argparse.Namespace, scenario) -> int:
+    from isp_twin.uncertainty import format_uncertainty, plot_uncertainty, run_uncertainty
+
+    if args.uncertainty < 2:
+        raise ScenarioError(f"--uncertainty must be >= 2 draws, got {args.uncertainty}")
+    if args.uncertainty_seed < 0:
+        raise ScenarioError(f"--uncertainty-seed must be >= 0, got {args.uncertainty_seed}")
+    if args.oat_seeds < 1:
+        raise ScenarioError(f"--oat-seeds must be >= 1, got {args.oat_seeds}")
+    plot = (
+        None if args.no_plot else args.plot or Path("sweeps") / f"{scenario.name}_uncertainty.png"
+    )
+    inputs = [scenario.source, *([args.params] if args.params is not None else [])]
+    check_outputs({"--json": args.json, "--plot": plot}, inputs)
+    if args.params is not None:
+        from isp_twin.parameters import load_parameters
+
+        load_parameters(args.params)  # a bad file stops before any output
+    n_runs = 2 * args.uncertainty
+    print(
+        f"campaign {scenario.name}: uncertainty, {args.uncertainty} draws x (PI, PI+NFC)"
+        f"{', plus one-at-a-time' if args.oat else ''}, axis {args.axis}"
+    )
+    with working(f"uncertainty {scenario.name}, {n_runs}{'+' if args.oat else ''} runs"):
+        result = run_uncertainty(
+            scenario,
+            args.uncertainty,
+            seed=args.uncertainty_seed,
+            params_path=args.params,
+            axis=args.axis,
+            jobs=max(1, args.jobs),
+            oat=args.oat,
+            oat_seeds=args.oat_seeds,
+            first_seed=args.seed,
+        )
+    print(format_uncertainty(result))
+    with transaction():
+        if plot is not None:
+            plot_uncertainty(result, plot)
+        if args.json is not None:
+            payload = {
+                **result.as_json(),
+                "units": {"J": "% (Eq. 10)", "reduction": "% of J PI, per draw", "rho": "1"},
+            }
+            write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
+    if plot is not None:
+        print(f"\nplot written to {plot}")
+    if args.json is not None and not is_stdout(args.json):
+        print(f"statistics written to {args.json}")
     return 0
