@@ -36,7 +36,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from isp_twin.effects import Effect
-from isp_twin.friction import stribeck_magnitude
+from isp_twin.friction import (
+    regime_index,
+    sliding_friction,
+    stiction_friction,
+    stribeck_magnitude,
+)
 from isp_twin.parameters import RateParams
 
 __all__ = ["AxisResponse", "simulate", "steady_rate"]
@@ -153,25 +158,24 @@ def simulate(
             uk = e.command(uk)
         more = None if extra is None else extra[:, k - 1]
         acc = sum(e.acceleration(side_angle, w) for e in torques) if torques else None
-        # Regime index as `regime_index`: 2*(angle <= 0) + (direction < 0).
-        side = base + 2 * ((side_angle if fixed_side is None else fixed_side) <= 0.0)
+        side_angle = side_angle if fixed_side is None else fixed_side
         moving = w != 0.0
         # Moving, the rate's sign picks the regime. At rest Eq. 5's T_m is the
         # motor's: the command's sign picks the gain, and the total drive
         # (motor + effects) must exceed the breakaway Ts of the direction it
         # pushes, as the twin's direction-dependent stiction constraint does.
-        drive = gain_flat[side + np.where(moving, w < 0.0, uk < 0.0)] * uk
+        drive = gain_flat[base + regime_index(side_angle, np.where(moving, w, uk))] * uk
         if more is not None:
             drive = drive + more
         if acc is not None:
             drive = drive + acc * dt
-        idx = side + np.where(moving, w < 0.0, drive < 0.0)
+        idx = base + regime_index(side_angle, np.where(moving, w, drive))
         a, _, ts, tc, al = table[idx].T
-        slide = np.sign(w) * stribeck_magnitude(np.abs(w), ts, tc, al)
-        w_move = a * w + drive - slide
+        w_move = a * w + drive - sliding_friction(w, ts, tc, al)
         # Friction cannot reverse the motion: a sign change ends at rest.
         w_move = np.where(w_move * w > 0.0, w_move, 0.0)
-        w_rest = np.where(np.abs(drive) > ts, drive - np.sign(drive) * ts, 0.0)
+        # At rest the net drive is what exceeds the breakaway (0 below it).
+        w_rest = drive - stiction_friction(drive, ts)
         w = np.where(moving, w_move, w_rest)
         y = y + dt * w
         if angle_limit is not None:

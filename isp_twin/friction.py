@@ -11,15 +11,33 @@ of the rate while moving and, at rest, the sign of the drive torque (the
 stiction branch of Eq. 5). `Ts` and `Tc` are magnitudes for both directions:
 the paper's condition "T_s^- < T_m" reads as "-T_s^- < T_m".
 
-All functions broadcast: parameters have shape (..., 4) (regimes last, in
-`REGIMES` order R+, R-, L+, L-), state arrays have the leading shape.
+The law is written once, as plain-float scalar functions (`side_of`,
+`regime_of`, `stribeck`, `sliding`, `stiction`: the ``math`` module only) that
+the per-step callers use as they are (the twin's step, the NFC) and that
+`isp_twin.closed_loop_kernel` compiles with numba from this same source. The
+array functions below them apply the same law to batches (the fast axis
+model, identification); tests/test_friction.py checks that both forms agree
+on every regime, at rest and moving.
+
+The array functions broadcast: parameters have shape (..., 4) (regimes last,
+in `REGIMES` order R+, R-, L+, L-), state arrays have the leading shape.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = [
+    "SCALAR_LAW",
+    "SIDE_R",
+    "SIDE_L",
+    "side_of",
+    "regime_of",
+    "stribeck",
+    "sliding",
+    "stiction",
     "regime_index",
     "take_regime",
     "stribeck_magnitude",
@@ -27,6 +45,51 @@ __all__ = [
     "stiction_friction",
     "friction_torque",
 ]
+
+#: The scalar form, one function per step of Eq. 5 (compiled by numba as they are).
+SCALAR_LAW = ("side_of", "regime_of", "stribeck", "sliding", "stiction")
+
+#: Sides of the angle (Fig. 3): R for angle > 0, L for angle <= 0.
+SIDE_R, SIDE_L = 0, 1
+
+# ------------------------------------------------------------------ scalar form
+# Plain floats and the math module only: numba compiles these unchanged, and
+# the compiled closed loop must repeat the Python step bit for bit.
+
+
+def side_of(angle: float) -> int:
+    """The side of the angle: `SIDE_R` (angle > 0) or `SIDE_L` (angle <= 0)."""
+    return SIDE_R if angle > 0.0 else SIDE_L
+
+
+def regime_of(side: int, direction: float) -> int:
+    """Index into `REGIMES` (0 = R+, 1 = R-, 2 = L+, 3 = L-).
+
+    Args:
+        side: `SIDE_R` or `SIDE_L` (see `side_of`).
+        direction: sign of motion: the rate while moving, the drive torque at
+            rest (the stiction branch of Eq. 5); zero counts as positive.
+    """
+    return 2 * side + (1 if direction < 0.0 else 0)
+
+
+def stribeck(speed: float, static: float, coulomb: float, alpha: float) -> float:
+    """Stribeck magnitude of Eq. 3/5: ``Tc + (Ts - Tc) * exp(-alpha * speed)``, speed >= 0."""
+    return coulomb + (static - coulomb) * math.exp(-alpha * speed)
+
+
+def sliding(rate: float, static: float, coulomb: float, alpha: float) -> float:
+    """Eq. 5 for a moving axis (rate != 0): ``sgn(rate) * stribeck(|rate|)``."""
+    magnitude = stribeck(abs(rate), static, coulomb, alpha)
+    return magnitude if rate > 0.0 else -magnitude
+
+
+def stiction(drive: float, static: float) -> float:
+    """Eq. 5 for an axis at rest: the friction equals the drive up to the breakaway ``static``."""
+    return static if drive > static else (-static if drive < -static else drive)
+
+
+# ------------------------------------------------------------------- array form
 
 
 def regime_index(angle, direction) -> np.ndarray:
@@ -40,6 +103,7 @@ def regime_index(angle, direction) -> np.ndarray:
     Returns:
         int array: 0 = R+, 1 = R-, 2 = L+, 3 = L-.
     """
+    # The same test as `side_of` / `regime_of`, element-wise.
     left = np.asarray(angle) <= 0.0
     negative = np.asarray(direction) < 0.0
     return 2 * left.astype(np.intp) + negative.astype(np.intp)

@@ -2,7 +2,8 @@
 
 The only module that imports `mujoco`. Physics (inertia, gyroscopic coupling,
 the turntable's reaction, the ±4 deg stops) is MuJoCo's; the friction law of
-Eq. 5 is written into the model every step from the parameter set, mapped from
+Eq. 5 (the regime choice and the Stribeck magnitude of `isp_twin.friction`)
+is written into the model every step from the parameter set, mapped from
 the rate form of Eq. 6 to torques by `PhysicalAxis.from_rate_params` (the
 derivation is in docs/axis_model.md).
 
@@ -13,7 +14,8 @@ Per step and gimbal (Eq. 5, regime = side of the angle x direction):
   noslip) brings the axis exactly to rest instead of reversing it, so
   reversals pass through stick and never chatter;
 * at rest: frictionloss F = (Ts+ + Ts-)/2 of the side, plus a constant bias
-  torque (Ts- - Ts+)/2, so that the breakaway is Ts+ in + and Ts- in -;
+  torque (Ts- - Ts+)/2, so that the breakaway is Ts+ in + and Ts- in -
+  (MuJoCo's constraint solver plays Eq. 5's stiction test, `friction.stiction`);
 * viscous torque −eta[r]·ω (explicit, in ``qfrc_applied``, so the friction
   constraint sees it; see the integrator note in the model), drive
   drive_gain[r]·u through the gimbal's motor.
@@ -27,7 +29,6 @@ from __future__ import annotations
 
 import copy
 import ctypes
-import math
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -43,6 +44,7 @@ from isp_twin.errors import (
     SimulationDiverged,
     nearest,
 )
+from isp_twin.friction import regime_of, side_of, stribeck
 from isp_twin.parameters import AXES, ParameterSet, RateParams
 from isp_twin.resources import model_path as default_model_path
 
@@ -427,10 +429,10 @@ class Twin:
             if not -MAX_RATE < w < MAX_RATE:
                 raise self.rate_diverged(s, w)
             _, visc, ts, tc, al, rest_f, rest_b = tab[s]
-            side = 0 if q[s] > 0.0 else 1
+            side = side_of(q[s])
             if w > REST_RATE or w < -REST_RATE:
-                r = 2 * side + (w < 0.0)
-                fl[s] = tc[r] + (ts[r] - tc[r]) * math.exp(-al[r] * abs(w))
+                r = regime_of(side, w)
+                fl[s] = stribeck(abs(w), ts[r], tc[r], al[r])
                 push[s] = -visc[r] * w
                 moving[s] = r
             else:
@@ -637,7 +639,7 @@ class Twin:
                 raise self.command_diverged(s, u)
             r = moving[s]
             if r < 0:  # at rest: the drive's sign picks the direction (Eq. 5)
-                r = 2 * (-1 - r) + (u < 0.0)
+                r = regime_of(-1 - r, u)
             regime[s] = r
             drive[s] = tab[s][0][r] * u
         self._ctrl_g[:] = drive

@@ -5,6 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from isp_twin import closed_loop_kernel as kernel
+from isp_twin import friction
 from isp_twin.closed_loop import ClosedLoop
 from isp_twin.errors import SimulationDiverged
 from isp_twin.parameters import EffectSpec, load_parameters
@@ -142,3 +144,19 @@ def test_a_step_mujoco_rejects_stops_both_loops_with_the_same_message(tmp_path, 
             loop.run()
         errors.append((str(info.value), loop.done))
     assert errors[0] == errors[1]
+
+
+def test_the_compiled_friction_law_is_friction_py_bit_for_bit():
+    cases = kernel.law_probe_cases()
+    compiled = kernel._law_probe(cases)
+    assert set(compiled[:, 1].tolist()) == {0.0, 1.0, 2.0, 3.0}  # every regime probed
+    assert np.array_equal(compiled, kernel.python_law(cases))
+    assert kernel.compiled_law_is_current()
+
+
+def test_an_edit_to_friction_py_makes_the_cached_kernels_stale(monkeypatch):
+    # What the import-time check sees when friction.py changed after the
+    # kernels were cached: the Python law no longer matches the compiled one.
+    law = friction.stribeck
+    monkeypatch.setattr(friction, "stribeck", lambda *args: law(*args) * (1 + 1e-12))
+    assert not kernel.compiled_law_is_current()

@@ -6,10 +6,17 @@ import numpy as np
 import pytest
 
 from isp_twin.friction import (
+    SIDE_L,
+    SIDE_R,
     friction_torque,
     regime_index,
+    regime_of,
+    side_of,
+    sliding,
     sliding_friction,
+    stiction,
     stiction_friction,
+    stribeck,
     stribeck_magnitude,
 )
 from isp_twin.parameters import REGIMES
@@ -86,3 +93,47 @@ def test_batched_parameters_broadcast():
     torque, regime = friction_torque(np.array([0.0, 0.0]), np.array([3.0, 3.0]), 1.0, ts, TC, ALPHA)
     assert regime.tolist() == [0, 0]
     np.testing.assert_allclose(torque, [3.0, 3.0])
+
+
+# ---------------------------------------------------------- scalar vs array form
+# One law, two forms: the per-step callers (twin, NFC, compiled loop) use the
+# scalar functions, the batched ones (axis model, identification) the arrays.
+
+ANGLES = (0.35, 1e-9, 0.0, -1e-9, -0.35)  # R, R, L (angle 0 is L), L, L
+RATES = (2.1, 0.04, 1e-12, 0.0, -1e-12, -0.04, -2.1)
+DRIVES = (9.0, 5.0, 1.0, 0.0, -1.0, -5.0, -9.0)
+
+
+@pytest.mark.parametrize("alpha", [ALPHA, np.zeros(4)], ids=["table2", "alpha0"])
+def test_scalar_and_array_forms_agree_on_every_regime(alpha):
+    grid = [(a, w, d) for a in ANGLES for w in RATES for d in DRIVES]
+    angle, rate, drive = (np.array(c) for c in zip(*grid))
+    torque, regime = friction_torque(rate, drive, angle, TS, TC, alpha)
+    assert set(regime.tolist()) == {0, 1, 2, 3}
+    for k, (a, w, d) in enumerate(grid):
+        side = side_of(a)
+        r = regime_of(side, w if w != 0.0 else d)
+        expected = sliding(w, TS[r], TC[r], alpha[r]) if w != 0.0 else stiction(d, TS[r])
+        assert r == regime[k]
+        # np.exp and math.exp may round differently in the last bit.
+        assert torque[k] == pytest.approx(expected, rel=1e-15, abs=0.0)
+        if w != 0.0:
+            magnitude = stribeck(abs(w), TS[r], TC[r], alpha[r])
+            assert magnitude == pytest.approx(
+                stribeck_magnitude(abs(w), TS[r], TC[r], alpha[r]), rel=1e-15
+            )
+            assert np.sign(expected) == np.sign(w)
+
+
+def test_scalar_side_and_regime_follow_fig3():
+    assert [side_of(a) for a in (1.0, 0.0, -1.0)] == [SIDE_R, SIDE_L, SIDE_L]
+    names = [REGIMES[regime_of(s, d)] for s in (SIDE_R, SIDE_L) for d in (1.0, 0.0, -1.0)]
+    assert names == ["R+", "R+", "R-", "L+", "L+", "L-"]
+
+
+def test_scalar_stiction_clips_at_breakaway_and_alpha0_is_coulomb():
+    assert stiction(3.0, 2.0) == 2.0 and stiction(-3.0, 2.0) == -2.0
+    assert stiction(1.5, 2.0) == 1.5 and stiction(0.0, 2.0) == 0.0
+    assert stribeck(0.0, 2.0, 1.0, 0.5) == 2.0
+    assert stribeck(7.0, 2.0, 1.0, 0.0) == 2.0  # alpha 0: no decay from Ts
+    assert sliding(-0.3, 2.0, 1.0, 0.5) == -sliding(0.3, 2.0, 1.0, 0.5)

@@ -22,10 +22,9 @@ What Eq. 11 leaves open, decided here:
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from isp_twin.friction import regime_of, side_of, sliding, stiction
 from isp_twin.parameters import RateParams
 
 __all__ = ["FrictionFeedForward"]
@@ -69,15 +68,11 @@ class FrictionFeedForward:
 
     def friction_digits(self, omega2: float, u_pi: float, angle: float) -> float:
         """Eq. 11: the model friction as an amplifier command u_c1 [digits]."""
-        left = 2 if angle <= 0.0 else 0
+        side = side_of(angle)
         if abs(omega2) > self.rest_rate:
-            r = left + (1 if omega2 < 0.0 else 0)
-            ts, tc = self.static_digits[r], self.coulomb_digits[r]
-            mag = tc + (ts - tc) * math.exp(-self.alpha[r] * abs(omega2))
-            return mag if omega2 > 0.0 else -mag
-        r = left + (1 if u_pi < 0.0 else 0)
-        ts = self.static_digits[r]
-        return ts if u_pi > ts else (-ts if u_pi < -ts else u_pi)
+            r = regime_of(side, omega2)
+            return sliding(omega2, self.static_digits[r], self.coulomb_digits[r], self.alpha[r])
+        return stiction(u_pi, self.static_digits[regime_of(side, u_pi)])
 
     def step(self, omega2: float, u_pi: float, angle: float) -> float:
         """One sample of Eq. 14: the compensation u_c3 [digits].
