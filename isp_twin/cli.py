@@ -9,27 +9,28 @@ code 2; a closed standard output (``| head``) ends the command quietly.
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import sys
 from collections.abc import Sequence
 
 from isp_twin import __version__
+from isp_twin.commands import (
+    calibrate,
+    campaign,
+    diagnose,
+    generate,
+    identify,
+    report,
+    run,
+    sweep,
+)
 from isp_twin.errors import IspTwinError
 from isp_twin.outputs import is_stdout, stdout_for_outputs
 
 __all__ = ["main", "build_parser"]
 
-SUBCOMMANDS = (
-    "run",
-    "identify",
-    "diagnose",
-    "generate",
-    "campaign",
-    "report",
-    "calibrate",
-    "sweep",
-)
+#: The subcommands, in the order of ``isp-twin --help``.
+SUBCOMMANDS = (run, identify, diagnose, generate, campaign, report, calibrate, sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -43,14 +44,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"isp-twin {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in SUBCOMMANDS:
-        try:
-            module = importlib.import_module(f"isp_twin.commands.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"isp_twin.commands.{name}":
-                continue
-            raise
-        module.add_parser(sub)
+    for command in SUBCOMMANDS:
+        command.add_parser(sub)
     return parser
 
 

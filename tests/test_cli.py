@@ -133,3 +133,20 @@ def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
     assert not list(tmp_path.glob("*.part"))
     # The metrics of the partial run say that they are partial.
     assert json.loads((tmp_path / "long.json").read_text())["interrupted"] is True
+
+
+def test_every_subcommand_module_is_wired_into_the_cli(capsys):
+    import importlib
+    import pkgutil
+
+    import isp_twin.commands
+    from isp_twin.cli import SUBCOMMANDS, build_parser
+
+    with_parser = set()
+    for info in pkgutil.iter_modules(isp_twin.commands.__path__):
+        module = importlib.import_module(f"isp_twin.commands.{info.name}")
+        if hasattr(module, "add_parser"):
+            with_parser.add(module)
+    assert with_parser == set(SUBCOMMANDS)
+    names = build_parser()._subparsers._group_actions[0].choices
+    assert sorted(names) == sorted(m.__name__.rsplit(".", 1)[1] for m in SUBCOMMANDS)

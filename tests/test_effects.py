@@ -249,3 +249,20 @@ def test_resonance_discretization_equals_the_matrix_exponential(freq, zeta, coup
     phi, gamma = _discretize(freq, zeta, coupling, DT)
     np.testing.assert_allclose(phi, want[:2, :2], atol=1e-12)
     np.testing.assert_allclose(gamma, want[:2, 2], atol=1e-15)
+
+
+def test_every_effect_module_is_listed_in_the_registry():
+    import importlib
+    import inspect
+    import pkgutil
+
+    import isp_twin.effects
+
+    found = {}
+    for info in pkgutil.iter_modules(isp_twin.effects.__path__):
+        module = importlib.import_module(f"isp_twin.effects.{info.name}")
+        for _, cls in inspect.getmembers(module, inspect.isclass):
+            if issubclass(cls, Effect) and cls is not Effect and cls.__module__ == module.__name__:
+                found[cls.name] = cls
+    assert found == EFFECTS
+    assert all(name == cls.__module__.rsplit(".", 1)[1] for name, cls in EFFECTS.items())

@@ -11,58 +11,66 @@ both the fast axis model and the MuJoCo twin:
 * ``measure(rate)``: the gyro's view of the rate [rad/s] (bias, scale).
 
 Parameters are SI; names carry the unit where not SI. One module per effect in
-this package; `isp_twin.diagnosis` tests them as candidates. Effects are
+this package, its class listed in `EFFECTS` below (tests/test_effects.py
+checks that none is missing); `isp_twin.diagnosis` tests them as candidates. Effects are
 stateful only through ``reset()``-able attributes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import ClassVar
-
+from isp_twin.effects import (
+    cable_spring,
+    cogging,
+    deadzone,
+    input_delay,
+    lugre,
+    resonance,
+    saturation,
+    sensor_bias,
+    torque_offset,
+    unbalance,
+)
+from isp_twin.effects.base import Effect
 from isp_twin.errors import ParameterError, nearest
 from isp_twin.parameters import EffectSpec
 
-__all__ = ["Effect", "EFFECTS", "register", "make_effect"]
+__all__ = [
+    "Effect",
+    "EFFECTS",
+    "register",
+    "make_effect",
+    "cable_spring",
+    "cogging",
+    "deadzone",
+    "input_delay",
+    "lugre",
+    "resonance",
+    "saturation",
+    "sensor_bias",
+    "torque_offset",
+    "unbalance",
+]
 
-#: Effect name -> class; filled by `register`.
-EFFECTS: dict[str, type[Effect]] = {}
-
-
-class Effect:
-    """Base class: no effect. Subclasses set `name`, `param_names` and override hooks."""
-
-    name: ClassVar[str] = "none"
-    param_names: ClassVar[tuple[str, ...]] = ()
-
-    def __init__(self, params: Mapping[str, float], dt: float = 1e-3):
-        missing = [p for p in self.param_names if p not in params]
-        unknown = [p for p in params if p not in self.param_names]
-        if missing or unknown:
-            bad = (missing or unknown)[0]
-            raise ParameterError(
-                f"effect '{self.name}': {'missing' if missing else 'unknown'} parameter "
-                f"'{bad}'{nearest(bad, self.param_names)}; expects {', '.join(self.param_names)}"
-            )
-        self.params = {k: float(params[k]) for k in self.param_names}
-        self.dt = dt
-        self.reset()
-
-    def reset(self) -> None:
-        """Clear internal state (delay lines, filter states)."""
-
-    def command(self, u: float) -> float:
-        return u
-
-    def acceleration(self, angle: float, rate: float) -> float:
-        return 0.0
-
-    def measure(self, rate: float) -> float:
-        return rate
+#: Effect name -> class: every effect this package ships, listed once here.
+EFFECTS: dict[str, type[Effect]] = {
+    cls.name: cls
+    for cls in (
+        cable_spring.CableSpring,
+        cogging.Cogging,
+        deadzone.Deadzone,
+        input_delay.InputDelay,
+        lugre.LuGre,
+        resonance.Resonance,
+        saturation.Saturation,
+        sensor_bias.SensorBias,
+        torque_offset.TorqueOffset,
+        unbalance.Unbalance,
+    )
+}
 
 
 def register(cls: type[Effect]) -> type[Effect]:
-    """Class decorator adding an effect to `EFFECTS`."""
+    """Add an effect class to `EFFECTS` (for effects defined outside this package)."""
     EFFECTS[cls.name] = cls
     return cls
 
@@ -77,31 +85,3 @@ def make_effect(spec: EffectSpec, dt: float = 1e-3) -> Effect:
             f"known: {', '.join(sorted(EFFECTS))}"
         ) from None
     return cls(spec.params, dt)
-
-
-# Each module registers its effect on import (after the base class exists).
-from isp_twin.effects import (  # noqa: E402
-    cable_spring,
-    cogging,
-    deadzone,
-    input_delay,
-    lugre,
-    resonance,
-    saturation,
-    sensor_bias,
-    torque_offset,
-    unbalance,
-)
-
-__all__ += [
-    "cable_spring",
-    "cogging",
-    "deadzone",
-    "input_delay",
-    "lugre",
-    "resonance",
-    "saturation",
-    "sensor_bias",
-    "torque_offset",
-    "unbalance",
-]

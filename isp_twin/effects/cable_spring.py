@@ -6,10 +6,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class CableSpring(Effect):
     """``accel = offset_rad_s2 - stiffness_1_s2 * angle`` (torque / J).
 

@@ -6,10 +6,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class Cogging(Effect):
     """``accel = amplitude_rad_s2 * sin(2*pi*angle/period_rad + phase_rad)``.
 

@@ -6,10 +6,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class Deadzone(Effect):
     """``u_amp = sign(u) * max(|u| - width_digits, 0)`` (symmetric dead band).
 

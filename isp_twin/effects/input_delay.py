@@ -6,10 +6,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class InputDelay(Effect):
     """The amplifier sees the command ``delay_s`` late (linear interpolation
     between samples for a fractional delay; the command before the start is

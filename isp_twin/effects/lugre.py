@@ -14,10 +14,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class LuGre(Effect):
     """``accel = -accel_rad_s2 * z / presliding_rad`` while moving.
 

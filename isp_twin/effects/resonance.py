@@ -12,7 +12,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
 def _discretize(freq_hz, damping_ratio, coupling, dt):
@@ -49,7 +49,6 @@ def _discretize(freq_hz, damping_ratio, coupling, dt):
     return phi, gamma
 
 
-@register
 class Resonance(Effect):
     """Gyro reading ``rate + x'`` of a payload mode excited by the axis acceleration.
 

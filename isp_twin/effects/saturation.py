@@ -6,10 +6,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class Saturation(Effect):
     """``u_amp = clip(u, -limit_digits, limit_digits)``.
 

@@ -6,10 +6,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class SensorBias(Effect):
     """``rate_measured = bias_rad_s + (1 + scale) * rate``.
 

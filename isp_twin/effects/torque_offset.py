@@ -6,10 +6,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class TorqueOffset(Effect):
     """A constant torque on the axis: ``accel = accel_rad_s2`` (torque / J).
 

@@ -6,10 +6,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.effects import Effect, register
+from isp_twin.effects.base import Effect
 
 
-@register
 class Unbalance(Effect):
     """``accel = amplitude_rad_s2 * sin(angle + phase_rad)``.
 
