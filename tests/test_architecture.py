@@ -1,0 +1,159 @@
+"""The package's dependency rules, read from the source (AST, nothing imported).
+
+* `mujoco` is imported only by the twin (twin.py) and by the compiled closed
+  loop (closed_loop_kernel.py), which calls MuJoCo's library itself;
+* `rerun` only by the recorder (recording.py);
+* `isp_twin.control` (the controller blocks) imports neither the twin nor the
+  scenario nor the closed loop: it is plain math, testable alone;
+* `isp_twin.friction` (Eq. 5, compiled by numba as written) uses only the
+  math module and numpy.
+
+An import counts wherever it is written (module top, inside a function, a
+relative import, ``from isp_twin import twin``, ``importlib.import_module``).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "isp_twin"
+
+#: Third-party module -> the files (relative to the repository) allowed to import it.
+CONFINED = {
+    "mujoco": {"isp_twin/twin.py", "isp_twin/closed_loop_kernel.py"},
+    "rerun": {"isp_twin/recording.py"},
+}
+#: Package directory -> modules none of its files may import.
+FORBIDDEN = {
+    "isp_twin/control/": (
+        "isp_twin.twin",
+        "isp_twin.scenario",
+        "isp_twin.closed_loop",
+        "isp_twin.closed_loop_kernel",
+        "mujoco",
+    ),
+}
+#: File -> the only modules it may import.
+ONLY = {"isp_twin/friction.py": ("__future__", "math", "numpy")}
+
+
+def module_name(rel: str) -> str:
+    """``isp_twin/control/nfc.py`` -> ``isp_twin.control.nfc`` (a package's __init__ -> the package)."""
+    parts = rel.removesuffix(".py").split("/")
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def imported_modules(source: str, rel: str) -> list[tuple[int, str]]:
+    """Every module a file imports, as (line, dotted name), relative imports resolved.
+
+    ``from a.b import c`` yields both ``a.b`` and ``a.b.c`` (c may be a module).
+    """
+    own = module_name(rel).split(".")
+    package = own if rel.endswith("__init__.py") else own[:-1]
+    found = []
+    for node in ast.walk(ast.parse(source, filename=rel)):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - (node.level - 1)]
+                base = ".".join(base + ([node.module] if node.module else []))
+            else:
+                base = node.module or ""
+            found.append((node.lineno, base))
+            found += [(node.lineno, f"{base}.{alias.name}") for alias in node.names]
+        elif (
+            isinstance(node, ast.Call)
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and isinstance(node.args[0].value, str)
+            and (
+                (isinstance(node.func, ast.Name) and node.func.id == "__import__")
+                or (isinstance(node.func, ast.Attribute) and node.func.attr == "import_module")
+            )
+        ):
+            found.append((node.lineno, node.args[0].value))
+    return found
+
+
+def _within(name: str, module: str) -> bool:
+    return name == module or name.startswith(module + ".")
+
+
+def violations(rel: str, source: str) -> list[str]:
+    """The dependency rules this file breaks, one line each ("file:line: why")."""
+    broken = []
+    for line, name in imported_modules(source, rel):
+        where = f"{rel}:{line}"
+        for module, homes in CONFINED.items():
+            if _within(name, module) and rel not in homes:
+                broken.append(f"{where}: imports {module} (only {', '.join(sorted(homes))})")
+        for folder, banned in FORBIDDEN.items():
+            if rel.startswith(folder):
+                broken += [f"{where}: {folder} imports {m}" for m in banned if _within(name, m)]
+        allowed = ONLY.get(rel)
+        if allowed is not None and not any(_within(name, module) for module in allowed):
+            top = name.split(".")[0] if name.split(".")[0] != "isp_twin" else name
+            broken.append(f"{where}: imports {top} (only {', '.join(allowed)})")
+    # ``from a import b`` is two names for one statement: one line per finding.
+    return list(dict.fromkeys(broken))
+
+
+def package_files() -> list[Path]:
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def test_the_package_keeps_its_dependency_rules():
+    root = PACKAGE.parent
+    broken = []
+    for path in package_files():
+        broken += violations(path.relative_to(root).as_posix(), path.read_text())
+    assert not broken, "\n".join(broken)
+
+
+def test_the_rules_name_files_that_exist():
+    root = PACKAGE.parent
+    named = set().union(*CONFINED.values(), ONLY, FORBIDDEN)
+    assert all((root / rel).exists() for rel in named)
+
+
+@pytest.mark.parametrize(
+    "rel, source",
+    [
+        ("isp_twin/metrics.py", "import mujoco\n"),
+        ("isp_twin/metrics.py", "def f():\n    from mujoco import mjtObj\n"),
+        ("isp_twin/metrics.py", "import importlib\nimportlib.import_module('mujoco')\n"),
+        ("isp_twin/diagnosis/report.py", "import rerun.blueprint as rrb\n"),
+        ("isp_twin/twin.py", "__import__('rerun')\n"),
+        ("isp_twin/control/pi.py", "from isp_twin.twin import Twin\n"),
+        ("isp_twin/control/pi.py", "from isp_twin import scenario\n"),
+        ("isp_twin/control/pi.py", "from .. import closed_loop\n"),
+        ("isp_twin/control/pi.py", "from ..closed_loop_kernel import advance\n"),
+        ("isp_twin/control/__init__.py", "from ..twin import Twin\n"),
+        ("isp_twin/friction.py", "import scipy.special\n"),
+        ("isp_twin/friction.py", "from isp_twin.twin import Twin\n"),
+    ],
+)
+def test_a_planted_violation_is_caught(rel, source):
+    assert violations(rel, source)
+
+
+@pytest.mark.parametrize(
+    "rel, source",
+    [
+        ("isp_twin/twin.py", "import mujoco\n"),
+        ("isp_twin/recording.py", "import rerun as rr\nfrom rerun.chunk import RrdReader\n"),
+        ("isp_twin/control/pi.py", "from isp_twin.units import DEG\nfrom . import bound\n"),
+        ("isp_twin/control/rate_loop.py", "from isp_twin.control.nfc import FrictionFeedForward\n"),
+        ("isp_twin/closed_loop.py", "from isp_twin.scenario import Scenario\n"),
+        ("isp_twin/friction.py", "from __future__ import annotations\nimport math\n"),
+        ("isp_twin/metrics.py", "import mujoco_menagerie_helpers\n"),  # a prefix is not a match
+    ],
+)
+def test_allowed_imports_pass(rel, source):
+    assert violations(rel, source) == []
