@@ -11,7 +11,10 @@ and with the same floating-point expressions (`Twin.sense`, `Twin.step`,
 `Twin._prepare`, `Gyro.read`, `Resolver.read`, `PIController`,
 `NotchFilter`, `FrictionFeedForward`, `Bound`, `OuterFollower`), so a run is
 bit-identical to the Python path (tests/test_closed_loop_kernel.py compares them);
-a change to one of those blocks must be made here too. The gyro noise is
+a change to one of those blocks must be made here too. Eq. 5 itself is not
+repeated: the scalar functions of `isp_twin.friction` are compiled here from
+their source (`_compile_scalar_law`), and an edit to friction.py that the
+numba cache missed is caught at import (`compiled_law_is_current`). The gyro noise is
 drawn before the run from the same generator, in the same order.
 
 State and configuration travel in flat arrays whose layouts are the
@@ -46,6 +49,7 @@ __all__ = [
     "TWIN_QACC",
     "TWIN_RATE",
     "TWIN_STATE",
+    "compiled_law_is_current",
 ]
 
 _LIB = mujoco_library()
