@@ -214,6 +214,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
         "right" if selected == right else ("none" if selected == "none" else "other")
     )
     rec["diagnose_heldout_over_noise"] = diag["rmse_after"] / (sigma * DEG)
+    rec["diagnose_tentative"] = list(diag.get("tentative_effects", []))
     if case != "clean" and selected == case:
         true_params = truth["effects"][0]["params"]
         fitted = diag["effect_parameters"]
@@ -260,6 +261,7 @@ def table(records: list[dict], case: str) -> str:
         sum(1 for r in records if r.get("diagnose_answer") == a) for a in ("right", "none", "other")
     ]
     answers = "/".join(map(str, counts)) + f" of {n}"
+    tentative = "-" if case == "clean" else frac(lambda r: case in r.get("diagnose_tentative", []))
     ok_diag = frac(lambda r: r.get("diagnose_heldout_over_noise", math.inf) <= lim)
     params = "-" if case == "clean" else frac(lambda r: r.get("params_ok", False))
     errors = sum(1 for r in records if "error" in r)
@@ -268,11 +270,21 @@ def table(records: list[dict], case: str) -> str:
     )
     return (
         f"| {case} | {n} | {ok_id} | {med('identify_train_over_noise')} | "
-        f"{med('identify_heldout_over_noise')} | {answers} | {ok_diag} | "
+        f"{med('identify_heldout_over_noise')} | {answers} | {tentative} | {ok_diag} | "
         f"{med('diagnose_heldout_over_noise')} | {params} | {times('identify_s')} | "
         f"{times('identify_cpu_s')} | {times('diagnose_s')} | {times('diagnose_cpu_s')} | "
         f"{over} | {errors} |"
     )
+
+
+def _with_tentative(rec: dict, workdir: Path) -> dict:
+    """The record with ``diagnose_tentative`` (read from its diagnose.json when
+    the record predates that field)."""
+    if "diagnose_tentative" not in rec:
+        path = workdir / rec["case"] / f"seed{rec['seed']}" / "diagnose.json"
+        if path.exists():
+            rec["diagnose_tentative"] = json.loads(path.read_text()).get("tentative_effects", [])
+    return rec
 
 
 def _rate(records: list[dict], pred, target: float, what: str) -> str:
@@ -441,17 +453,18 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(
         "| case | axes | identify train & held-out <= bound | median train/noise | "
-        "median held-out/noise | diagnose right/none/other | held-out after <= bound | "
+        "median held-out/noise | diagnose right/none/other | right effect only tentative | "
+        "held-out after <= bound | "
         "median after/noise | params ok | identify wall s med/max | identify CPU s med/max | "
         "diagnose wall s med/max | diagnose CPU s med/max | over 120 s | errors |"
     )
-    print("|---|" + "---|" * 14)
+    print("|---|" + "---|" * 15)
     for case in cases:
         rows = db.execute(
             "SELECT record FROM result WHERE case_name = ? AND seed < ? ORDER BY seed",
             (case, args.axes),
         ).fetchall()
-        records = [json.loads(r[0]) for r in rows]
+        records = [_with_tentative(json.loads(r[0]), workdir) for r in rows]
         if records:
             print(table(records, case))
     load = os.getloadavg()[0]
