@@ -124,3 +124,21 @@ def test_true_parameters_of_a_reference_axis_reach_the_noise_only_sub_stepped():
 
     assert max(ratio(r, Integration(10)) for r in runs) < 1.2
     assert max(ratio(r, EQ6) for r in runs) > 2.0
+
+
+@pytest.mark.parametrize("command", ["identify", "diagnose"])
+def test_a_bad_substep_count_is_one_clear_error(tmp_path, capsys, command):
+    from isp_twin.cli import main
+    from isp_twin.measured import MeasuredData, save_measured
+    from isp_twin.resources import default_parameters_path
+
+    t = np.arange(200) * DT
+    run = MeasuredData("r", t, 500 * np.sin(t), 0.01 * np.sin(t), 0.001 * np.cos(t), None, DT)
+    csv = save_measured(run, tmp_path / "r.csv")
+    argv = [command, str(csv), "--substeps", "0", "--out", str(tmp_path / "p.yaml")]
+    if command == "diagnose":
+        argv += ["--params", str(default_parameters_path()), "--no-recording"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--substeps must be between 1 and 100, got 0" in err[0]
+    assert not (tmp_path / "p.yaml").exists()
