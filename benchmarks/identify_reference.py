@@ -37,7 +37,6 @@ import argparse
 import json
 import math
 import os
-import resource
 import sqlite3
 import statistics
 import subprocess
@@ -66,30 +65,48 @@ def bound(case: str) -> float:
     return 1.3 if case == "clean" else 1.5
 
 
-def run_command(args: list[str], cwd: Path, timeout_s: float) -> tuple[int, float, float, str]:
-    """(exit code or -1 on timeout, wall time [s], CPU time [s], last stderr line).
+def run_command(
+    args: list[str], cwd: Path, timeout_s: float
+) -> tuple[int, float, float, str, float]:
+    """(exit code or -1 on timeout, wall time [s], CPU time [s], last stderr line,
+    peak resident memory [MB]) of one command in a child process.
 
     The CPU time (user + system of the child) does not grow with the load
-    other processes put on the machine; the wall time does.
+    other processes put on the machine; the wall time does. CPU time and
+    peak memory are the child's own (`os.wait4`).
     """
+    import tempfile
+
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     start = time.perf_counter()
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    try:
-        done = subprocess.run(
+    with tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen(
             [sys.executable, "-m", "isp_twin.cli", *args],
             cwd=cwd,
             env=env,
-            capture_output=True,
+            stdout=subprocess.DEVNULL,
+            stderr=err,
             text=True,
-            timeout=timeout_s,
         )
-        code, lines = done.returncode, done.stderr.strip().splitlines()
-    except subprocess.TimeoutExpired:
-        code, lines = -1, [f"timeout after {timeout_s:g} s"]
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return code, time.perf_counter() - start, cpu, lines[-1] if lines else ""
+        while True:
+            pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
+            if pid:
+                code = os.waitstatus_to_exitcode(status)
+                proc.returncode = code
+                break
+            if time.perf_counter() - start > timeout_s:
+                proc.kill()
+                _, _, usage = os.wait4(proc.pid, 0)
+                proc.returncode = code = -1
+                break
+            time.sleep(0.05)
+        err.seek(0)
+        lines = err.read().strip().splitlines()
+    if code == -1:
+        lines = [f"timeout after {timeout_s:g} s"]
+    cpu = usage.ru_utime + usage.ru_stime
+    peak_mb = usage.ru_maxrss / 1024.0  # Linux: kilobytes
+    return code, time.perf_counter() - start, cpu, lines[-1] if lines else "", peak_mb
 
 
 def param_ok(name: str, key: str, fitted: float, true: float, dt: float) -> bool:
@@ -130,7 +147,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
     rec["noise_deg_s"] = sigma
     rec["time_constant_s"] = truth["physical"]["time_constant_s"]
 
-    code, secs, cpu, last = run_command(
+    code, secs, cpu, last, peak = run_command(
         [
             "identify",
             "train1.csv",
@@ -148,6 +165,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
         timeout_s,
     )
     rec["identify_s"], rec["identify_cpu_s"], rec["identify_code"] = secs, cpu, code
+    rec["identify_peak_mb"] = peak
     if code != 0:
         rec["error"] = f"identify exit {code}: {last}"
         return rec
@@ -163,7 +181,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
     ]
     rec["identify_gain_coulomb_median_rel_error"] = float(np.median(errs))
 
-    code, secs, cpu, last = run_command(
+    code, secs, cpu, last, peak = run_command(
         [
             "diagnose",
             "train1.csv",
@@ -184,6 +202,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
         timeout_s,
     )
     rec["diagnose_s"], rec["diagnose_cpu_s"], rec["diagnose_code"] = secs, cpu, code
+    rec["diagnose_peak_mb"] = peak
     if code != 0:
         rec["error"] = f"diagnose exit {code}: {last}"
         return rec
@@ -195,6 +214,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
         "right" if selected == right else ("none" if selected == "none" else "other")
     )
     rec["diagnose_heldout_over_noise"] = diag["rmse_after"] / (sigma * DEG)
+    rec["diagnose_tentative"] = list(diag.get("tentative_effects", []))
     if case != "clean" and selected == case:
         true_params = truth["effects"][0]["params"]
         fitted = diag["effect_parameters"]
@@ -241,6 +261,7 @@ def table(records: list[dict], case: str) -> str:
         sum(1 for r in records if r.get("diagnose_answer") == a) for a in ("right", "none", "other")
     ]
     answers = "/".join(map(str, counts)) + f" of {n}"
+    tentative = "-" if case == "clean" else frac(lambda r: case in r.get("diagnose_tentative", []))
     ok_diag = frac(lambda r: r.get("diagnose_heldout_over_noise", math.inf) <= lim)
     params = "-" if case == "clean" else frac(lambda r: r.get("params_ok", False))
     errors = sum(1 for r in records if "error" in r)
@@ -249,16 +270,126 @@ def table(records: list[dict], case: str) -> str:
     )
     return (
         f"| {case} | {n} | {ok_id} | {med('identify_train_over_noise')} | "
-        f"{med('identify_heldout_over_noise')} | {answers} | {ok_diag} | "
+        f"{med('identify_heldout_over_noise')} | {answers} | {tentative} | {ok_diag} | "
         f"{med('diagnose_heldout_over_noise')} | {params} | {times('identify_s')} | "
         f"{times('identify_cpu_s')} | {times('diagnose_s')} | {times('diagnose_cpu_s')} | "
         f"{over} | {errors} |"
     )
 
 
+def _with_tentative(rec: dict, workdir: Path) -> dict:
+    """The record with ``diagnose_tentative`` (read from its diagnose.json when
+    the record predates that field)."""
+    if "diagnose_tentative" not in rec:
+        path = workdir / rec["case"] / f"seed{rec['seed']}" / "diagnose.json"
+        if path.exists():
+            rec["diagnose_tentative"] = json.loads(path.read_text()).get("tentative_effects", [])
+    return rec
+
+
+def _rate(records: list[dict], pred, target: float, what: str) -> str:
+    n = len(records)
+    k = sum(1 for r in records if pred(r))
+    share = k / n if n else float("nan")
+    met = "MET" if n and share >= target else "NOT MET"
+    return f"{what}: {k}/{n} = {100 * share:.0f} % (target >= {100 * target:.0f} %) {met}"
+
+
+def target_lines(records: list[dict], case: str) -> list[str]:
+    """The issue's accuracy targets for one case, as rates over its axes."""
+    if not records:
+        return []
+    lim = bound(case)
+    if case == "clean":
+        return [
+            _rate(
+                records,
+                lambda r: (
+                    r.get("identify_train_over_noise", math.inf) <= lim
+                    and r.get("identify_heldout_over_noise", math.inf) <= lim
+                ),
+                0.95,
+                f"clean: identify train and held-out <= {lim}x noise",
+            ),
+            _rate(
+                records,
+                lambda r: r.get("diagnose_answer") == "right",
+                0.95,
+                "clean: diagnose answers none",
+            ),
+        ]
+    return [
+        _rate(
+            records,
+            lambda r: r.get("diagnose_answer") == "right",
+            0.90,
+            f"{case}: right effect selected",
+        ),
+        _rate(
+            records,
+            lambda r: r.get("params_ok", False),
+            0.90,
+            f"{case}: right effect with parameters within tolerance",
+        ),
+        _rate(
+            records,
+            lambda r: (
+                r.get("diagnose_answer") == "right"
+                and r.get("diagnose_heldout_over_noise", math.inf) <= lim
+            ),
+            0.90,
+            f"{case}: right effect and held-out after <= {lim}x noise",
+        ),
+    ]
+
+
+def speed_lines(records: list[dict]) -> list[str]:
+    """Speed and memory targets over every axis run (wall times on this machine)."""
+
+    def worst(key: str) -> float:
+        v = [r[key] for r in records if key in r]
+        return max(v) if v else float("nan")
+
+    def med(key: str) -> float:
+        v = [r[key] for r in records if key in r]
+        return statistics.median(v) if v else float("nan")
+
+    over = sum(
+        1 for r in records if max(r.get("identify_s", 0), r.get("diagnose_s", 0)) > TIMEOUT_S
+    )
+    lines = []
+    for key, limit, what in (
+        ("identify_s", 20.0, "identify 2 x 6000 samples"),
+        ("diagnose_s", 60.0, "diagnose (whole library) 3 x 6000 samples"),
+    ):
+        k = sum(1 for r in records if r.get(key, math.inf) <= limit)
+        n = sum(1 for r in records if key in r)
+        cpu = key.replace("_s", "_cpu_s")
+        lines.append(
+            f"{what}: wall median {med(key):.1f} s, max {worst(key):.1f} s; CPU median "
+            f"{med(cpu):.1f} s, max {worst(cpu):.1f} s; {k}/{n} within {limit:g} s "
+            f"(target: all) {'MET' if n and k == n else 'NOT MET'}"
+        )
+    lines.append(
+        f"runs over {TIMEOUT_S:g} s: {over} (target 0) {'MET' if over == 0 else 'NOT MET'}"
+    )
+    lines.append(
+        f"peak memory per command: identify max {worst('identify_peak_mb'):.0f} MB, "
+        f"diagnose max {worst('diagnose_peak_mb'):.0f} MB"
+    )
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--axes", type=int, default=3, help="axes (seeds 0..N-1) per case")
+    p.add_argument(
+        "--first-seed",
+        type=int,
+        default=0,
+        help="run seeds FIRST..N-1 only (a second process on the same --db can take "
+        "later seeds); the table reports every stored seed below N",
+    )
     p.add_argument(
         "--cases", default=",".join(CASES), help="comma-separated: clean and effect names"
     )
@@ -294,11 +425,13 @@ def main(argv: list[str] | None = None) -> int:
         if not (args.redo_errors and "error" in json.loads(r))
     }
     # Seed-major: every case gets its first axes before any gets its last.
-    todo = [(c, s) for s in range(args.axes) for c in cases if (c, s) not in done]
+    todo = [(c, s) for s in range(args.first_seed, args.axes) for c in cases if (c, s) not in done]
     if args.report_only:
         todo = []
     else:
-        print(f"{len(todo)} axes to run, {len(cases) * args.axes - len(todo)} already in {args.db}")
+        print(
+            f"{len(todo)} axes to run, {len(cases) * (args.axes - args.first_seed) - len(todo)} already in {args.db}"
+        )
     wall = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         futures = {
@@ -320,17 +453,18 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(
         "| case | axes | identify train & held-out <= bound | median train/noise | "
-        "median held-out/noise | diagnose right/none/other | held-out after <= bound | "
+        "median held-out/noise | diagnose right/none/other | right effect only tentative | "
+        "held-out after <= bound | "
         "median after/noise | params ok | identify wall s med/max | identify CPU s med/max | "
         "diagnose wall s med/max | diagnose CPU s med/max | over 120 s | errors |"
     )
-    print("|---|" + "---|" * 14)
+    print("|---|" + "---|" * 15)
     for case in cases:
         rows = db.execute(
             "SELECT record FROM result WHERE case_name = ? AND seed < ? ORDER BY seed",
             (case, args.axes),
         ).fetchall()
-        records = [json.loads(r[0]) for r in rows]
+        records = [_with_tentative(json.loads(r[0]), workdir) for r in rows]
         if records:
             print(table(records, case))
     load = os.getloadavg()[0]
@@ -338,6 +472,19 @@ def main(argv: list[str] | None = None) -> int:
         f"\nbound: 1.3x noise (clean), 1.5x (effects); load average now {load:.1f} on "
         f"{os.cpu_count()} cores; results in {args.db}"
     )
+    every = []
+    print("\nissue 8 targets:")
+    for case in cases:
+        rows = db.execute(
+            "SELECT record FROM result WHERE case_name = ? AND seed < ? ORDER BY seed",
+            (case, args.axes),
+        ).fetchall()
+        records = [json.loads(r[0]) for r in rows]
+        every.extend(records)
+        for line in target_lines(records, case):
+            print("  " + line)
+    for line in speed_lines(every):
+        print("  " + line)
     return 0
 
 

@@ -42,7 +42,15 @@ def rmse_table(result: IdentificationResult, data: Sequence[MeasuredData]) -> di
     s = result.settings
     return {
         d.name: float(
-            rmse(result.rate, [d], s.side, s.rest_rate_deg_s, result.effects, result.timing)
+            rmse(
+                result.rate,
+                [d],
+                s.side,
+                s.rest_rate_deg_s,
+                result.effects,
+                result.timing,
+                result.integration,
+            )
         )
         / DEG
         for d in data
@@ -138,7 +146,13 @@ def result_json(
         "effects_held": [{"name": e.name, "parameters": dict(e.params)} for e in result.effects],
         "timing": {
             "gyro_average": result.timing.gyro_average,
-            "side_shift_samples": result.timing.side_shift,
+            "side_shift_steps": result.timing.side_shift,
+        },
+        "integration": {
+            "substeps_per_sample": result.integration.substeps,
+            "midpoint_friction": result.integration.midpoint_friction,
+            "split_reversals": result.integration.split_reversals,
+            "exact_effect_hold": result.integration.exact_effect_hold,
         },
     }
 
@@ -198,11 +212,11 @@ def _plot(result: IdentificationResult, d: MeasuredData, path: Path, title: str)
 
     s = result.settings
     model = simulate_data(
-        result.rate, d, s.side, s.rest_rate_deg_s, result.effects, result.timing
+        result.rate, d, s.side, s.rest_rate_deg_s, result.effects, result.timing, result.integration
     ).omega
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 5.5))
     ax1.plot(d.t, d.omega / DEG, lw=0.8, label="measured")
-    ax1.plot(d.t, model / DEG, lw=0.8, ls="--", label="model (Eq. 6)")
+    ax1.plot(d.t, model / DEG, lw=0.8, ls="--", label=f"model ({result.integration.describe()})")
     ax1.set_ylabel("rate [deg/s]")
     ax1.legend(loc="best")
     ax1.set_title(title)
@@ -242,7 +256,8 @@ def write_report(
         f"Search: {result.status}; {result.evaluations} simulated parameter sets, "
         f"{result.wall_time_s:.1f} s. Eq. 9 cost {result.cost / DEG:.4g} deg/s "
         f"(equation-error start {result.initial_cost / DEG:.4g} deg/s).",
-        f"Read-out timing: {result.timing.describe()}.",
+        f"Read-out timing: {result.timing.describe()}. Model: Eq. 6 parameters "
+        f"(per sample), integrated as {result.integration.describe()}.",
         f"Half-plane from: `{result.settings.side}` angle. Residual lag-1 correlation "
         f"{result.rho:.3f} (intervals inflated by (1+rho)/(1-rho) when positive).",
         "Extra effects of the prior, held fixed in the fit and in every simulation here: "

@@ -49,6 +49,8 @@ def case(tmp_path_factory):
             "cogging,unbalance,cable_spring",
             "--max-rounds",
             "1",
+            "--substeps",
+            "1",  # the runs are made by Eq. 6 itself
             "--out",
             str(out),
             "--report",

@@ -6,11 +6,15 @@ Seed 0 was picked after identifying reference seeds 0-5 (training at the noise
 on 0, 1, 4; not on 2, 3, 5; held out at the noise on none of them, see
 docs/identification.md): this test pins the behaviour on one axis, the rates
 over many axes are the benchmark's (`benchmarks/identify_reference.py`).
+Since the sub-stepped model (issue 8) the held-out run of this axis is at the
+noise too, and the issue's bound (1.3 noise sigmas for clean data) is asserted
+on it.
 """
 
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 import yaml
@@ -36,20 +40,38 @@ def identified(tmp_path_factory):
     argv += ["--validate", str(d / "heldout.csv"), "--out", str(out), "--json", str(js)]
     assert main(argv + ["--quiet", "--no-report"]) == 0
     truth = yaml.safe_load((d / "truth.yaml").read_text())
-    return _strict(js.read_text()), truth
+    return _strict(js.read_text()), truth, d
+
+
+def test_diagnose_finds_no_effect_on_the_clean_reference_axis(identified):
+    """Issue 8: on clean data `diagnose` answers none, at the noise. The
+    candidates are the three the issue saw reported on clean reference axes
+    (a false input delay, cogging) and the cable spring (a base-model error
+    that varies with the angle): the whole library costs a minute."""
+    _, truth, d = identified
+    js = d / "diag.json"
+    argv = ["diagnose", str(d / "train1.csv"), str(d / "train2.csv"), "--params", str(d / "p.yaml")]
+    argv += ["--holdout", str(d / "heldout.csv"), "--json", str(js), "--no-recording"]
+    argv += ["--report", str(d / "report"), "--candidates", "input_delay,cogging,cable_spring"]
+    assert main(argv + ["--quiet"]) == 0
+    result = _strict(js.read_text())
+    assert result["selected_effect"] == "none"
+    assert result["rmse_after"] <= 1.3 * truth["noise_sigma_deg_s"] * math.pi / 180
 
 
 def test_training_error_is_at_the_reference_noise_without_the_papers_prior(identified):
-    summary, truth = identified
+    summary, truth, _ = identified
     sigma = truth["noise_sigma_deg_s"]
     for name, rmse_deg_s in summary["rmse_train"].items():
         assert rmse_deg_s <= 1.3 * sigma, name
+    # ...and on the held-out run of another excitation (issue 8's bound).
+    assert summary["rmse_validation"]["heldout"] <= 1.3 * sigma
     # The data's own noise floor estimate is the truth's noise.
     assert summary["noise_floor_deg_s"] == pytest.approx(sigma, rel=0.05)
 
 
 def test_the_verdict_states_every_set_against_its_noise_floor(identified):
-    summary, _ = identified
+    summary, _, _ = identified
     v = summary["verdict"]
     assert set(v["per_set"]) == {"train1", "train2", "heldout"}
     ratios = [s["rmse_over_noise_floor"] for s in v["per_set"].values()]

@@ -1,20 +1,24 @@
-"""The measured-data options shared by `identify` and `diagnose`: how a file's
-own columns map onto t, u, omega, theta."""
+"""The options shared by `identify` and `diagnose`: how a file's own columns
+map onto t, u, omega, theta, how much data is accepted, and how the model
+integrates a sample (``--substeps``)."""
 
 from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import replace
 from pathlib import Path
 
-from isp_twin.errors import DataError
+from isp_twin.errors import DataError, ParameterError
 from isp_twin.measured import DataMapping, load_data_description, mapping_from_options
+from isp_twin.substep_model import DEFAULT_INTEGRATION, EQ6, Integration
 
 __all__ = [
     "MAX_SAMPLES",
     "add_data_options",
     "check_initial_angle",
     "check_sample_budget",
+    "integration_from_args",
     "mapping_from_args",
 ]
 
@@ -50,6 +54,24 @@ def add_data_options(p: argparse.ArgumentParser) -> None:
         metavar="N",
         help=f"refuse data with more samples than this in all runs together (default {MAX_SAMPLES})",
     )
+    p.add_argument(
+        "--substeps",
+        type=int,
+        default=DEFAULT_INTEGRATION.substeps,
+        metavar="M",
+        help="the model integrates each sample in M sub-steps (default "
+        f"{DEFAULT_INTEGRATION.substeps}; 1: the paper's Eq. 6, friction held over the sample)",
+    )
+
+
+def integration_from_args(args: argparse.Namespace) -> Integration:
+    """The model integration ``--substeps`` asks for (1: Eq. 6 exactly)."""
+    m = args.substeps
+    if m < 1 or m > 100:
+        raise ParameterError(f"--substeps must be between 1 and 100, got {m}")
+    if m == 1:
+        return EQ6
+    return replace(DEFAULT_INTEGRATION, substeps=m)
 
 
 def check_initial_angle(args: argparse.Namespace) -> None:

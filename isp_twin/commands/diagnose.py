@@ -13,6 +13,7 @@ from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
     check_sample_budget,
+    integration_from_args,
     mapping_from_args,
 )
 from isp_twin.commands.progress import working
@@ -145,6 +146,7 @@ def execute(args: argparse.Namespace) -> int:
             side=args.side,
             seed=args.seed,
             base_search=args.base_search,
+            integration=integration_from_args(args),
         )
     result = diag.to_json()
     result["sample_period_s"] = {d.name: d.dt for d in runs}

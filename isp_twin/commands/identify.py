@@ -13,6 +13,7 @@ from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
     check_sample_budget,
+    integration_from_args,
     mapping_from_args,
 )
 from isp_twin.errors import ParameterError
@@ -132,6 +133,7 @@ def execute(args) -> int:
         rest_rate_deg_s=args.rest_rate,
         side=args.side,
         prior_in_search=args.prior_in_search,
+        integration=integration_from_args(args),
     )
     show = not args.quiet and sys.stderr.isatty()
 

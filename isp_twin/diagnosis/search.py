@@ -28,10 +28,11 @@ from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.effects import EFFECTS
 from isp_twin.errors import DataError, ParameterError, nearest
+from isp_twin.identification import TIMINGS, Timing, identify, rmse, side_angle
 from isp_twin.identification import Settings as IdSettings
-from isp_twin.identification import Timing, identify, side_angle
 from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
 from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
+from isp_twin.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.units import DEG
 from isp_twin.verdict import CONVERGED_RATIO, json_safe
 
@@ -105,7 +106,9 @@ class Diagnosis:
             held-out error above `CONVERGED_RATIO` noise floors: not adopted
             (an effect that does not bring the model to the noise may be
             standing in for a base model that does not fit).
-        timing: the data's read-out timing found by the base model's fit.
+        timing: the data's read-out timing (found by the base model's fit,
+            or at the file's parameters).
+        integration: how the model integrates a sample (`Integration`).
     """
 
     axis: str
@@ -123,6 +126,7 @@ class Diagnosis:
     stack: RunStack | None = field(default=None, repr=False)
     tentative: tuple[str, ...] = ()
     timing: Timing = Timing()
+    integration: Integration = DEFAULT_INTEGRATION
 
     @property
     def accepted(self) -> tuple[CandidateFit, ...]:
@@ -157,7 +161,13 @@ class Diagnosis:
                 "tentative_effects": list(self.tentative),
                 "timing": {
                     "gyro_average": self.timing.gyro_average,
-                    "side_shift_samples": self.timing.side_shift,
+                    "side_shift_steps": self.timing.side_shift,
+                },
+                "integration": {
+                    "substeps_per_sample": self.integration.substeps,
+                    "midpoint_friction": self.integration.midpoint_friction,
+                    "split_reversals": self.integration.split_reversals,
+                    "exact_effect_hold": self.integration.exact_effect_hold,
                 },
                 "units": {
                     "rmse_before": "rad/s",
@@ -235,14 +245,22 @@ def split_in_time(run) -> tuple[MeasuredData, MeasuredData]:
 
 
 def _cv_residuals(
-    runs, fits: Sequence[CandidateFit], max_iter: int, side=None, gyro_average: bool = False
+    runs,
+    fits: Sequence[CandidateFit],
+    max_iter: int,
+    side=None,
+    gyro_average: bool = False,
+    integration: Integration = DEFAULT_INTEGRATION,
 ) -> list[list[np.ndarray]]:
     """Leave-one-run-out residuals of each fit; every fold refits all of them
     in lockstep, warm-started from their all-run fits."""
     out: list[list[np.ndarray]] = [[] for _ in fits]
     for k in range(len(runs)):
         train = _stack_runs(
-            [r for i, r in enumerate(runs) if i != k], side=side, gyro_average=gyro_average
+            [r for i, r in enumerate(runs) if i != k],
+            side=side,
+            gyro_average=gyro_average,
+            integration=integration,
         )
         folds = fit_candidates(
             train,
@@ -256,7 +274,7 @@ def _cv_residuals(
             polish=False,
         )
         held = holdout_residuals(
-            _stack_runs([runs[k]], side=side, gyro_average=gyro_average),
+            _stack_runs([runs[k]], side=side, gyro_average=gyro_average, integration=integration),
             [folds[f.name] for f in fits],
         )
         for i, parts in enumerate(held):
@@ -276,6 +294,8 @@ def diagnose(
     side: str = "measured",
     seed: int = 0,
     base_search: bool = False,
+    integration: Integration = DEFAULT_INTEGRATION,
+    timing: Timing | None = None,
 ) -> Diagnosis:
     """Diagnose what the model of one axis misses in measured open-loop runs.
 
@@ -308,6 +328,12 @@ def diagnose(
             Opt-in: it costs an identification per round, and an effect
             that trades against the friction levels (a dead zone) can be
             absorbed by the base fit (docs/diagnosis.md).
+        integration: how the model integrates a sample (the same as the
+            parameter file was identified with; `Integration`).
+        timing: the data's read-out timing when known (`Timing`); None:
+            found by the base model's global search (`base_search`), else
+            the one of `isp_twin.identification.TIMINGS` that fits best at
+            the file's parameters, as `identify` chooses it.
 
     Raises:
         DataError: no runs, or a sample period that differs from the set's.
@@ -342,11 +368,27 @@ def diagnose(
     if not holdout and len(runs) == 1:
         runs = list(split_in_time(runs[0]))
     base_id = None
-    timing = Timing()
+    given_timing = timing
+    timing = Timing() if timing is None else timing
     raw_runs = list(runs)
+    m = integration.substeps
     if base_search:
-        base_id = identify(runs, ax, IdSettings(side=side, seed=seed))
+        base_id = identify(
+            runs,
+            ax,
+            IdSettings(side=side, seed=seed, integration=integration, timing=given_timing),
+        )
         timing = base_id.timing
+    elif side == "measured" and given_timing is None:
+        # The data's read-out timing (what a gyro sample means) at the file's
+        # parameters, as `identify` chooses it: a gyro averaging over the
+        # sample read as a point value leaves a fast axis far from the noise.
+        x_file_rate = ax.rate_params()
+        costs = {
+            t: float(rmse(x_file_rate, runs, side, 0.1, tuple(ax.effects), t, integration))
+            for t in TIMINGS
+        }
+        timing = min(costs, key=costs.get)
     if side == "measured":
         # The half-plane and the angle-dependent effects see the fused angle
         # (resolver quantization steps would flip the regime back and forth
@@ -354,13 +396,18 @@ def diagnose(
         # the starting model better: a gyro scale or bias error (the
         # sensor_bias effect) enters the integrated rate the fusion trusts
         # at short times and moves its zero crossings.
-        fused = [replace(r, angle=side_angle(r, "measured", timing.side_shift)) for r in runs]
+        fused = [replace(r, angle=side_angle(r, "measured", timing.side_shift / m)) for r in runs]
         x_start = base_id.vector if base_id is not None else ax.rate_params().to_vector()
         costs = [
             float(
                 np.sum(
                     _simulation_residuals(
-                        _stack_runs(rs, side=None, gyro_average=timing.gyro_average),
+                        _stack_runs(
+                            rs,
+                            side=None,
+                            gyro_average=timing.gyro_average,
+                            integration=integration,
+                        ),
                         x_start,
                         tuple(ax.effects),
                     )
@@ -372,11 +419,13 @@ def diagnose(
         if costs[0] <= costs[1]:
             runs = fused
             holdout = [
-                replace(r, angle=side_angle(r, "measured", timing.side_shift)) for r in holdout
+                replace(r, angle=side_angle(r, "measured", timing.side_shift / m)) for r in holdout
             ]
 
     def stack_runs(rs):
-        return _stack_runs(rs, side=fixed_side, gyro_average=timing.gyro_average)
+        return _stack_runs(
+            rs, side=fixed_side, gyro_average=timing.gyro_average, integration=integration
+        )
 
     train = stack_runs(runs)
     held = stack_runs(holdout) if holdout else None
@@ -389,7 +438,7 @@ def diagnose(
     def held_residuals(fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
         if held is not None:
             return holdout_residuals(held, fits)
-        return _cv_residuals(runs, fits, cv_iter, fixed_side, timing.gyro_average)
+        return _cv_residuals(runs, fits, cv_iter, fixed_side, timing.gyro_average, integration)
 
     x_file = ax.rate_params().to_vector()
     fixed = tuple(ax.effects)
@@ -517,6 +566,7 @@ def diagnose(
         stack=train,
         tentative=tentative,
         timing=timing,
+        integration=integration,
     )
 
 
@@ -524,7 +574,11 @@ def _refit_globally(raw_runs, ax, fit, train, seed, side, timing, max_iter) -> C
     """`fit`'s rate parameters identified again with its effects held (`identify`),
     then rate and effect parameters polished together."""
     held_ax = replace(ax, effects=fit.effects())
-    again = identify(raw_runs, held_ax, IdSettings(side=side, seed=seed, timing=timing))
+    again = identify(
+        raw_runs,
+        held_ax,
+        IdSettings(side=side, seed=seed, timing=timing, integration=train.integration),
+    )
     return fit_candidates(
         train,
         again.vector,

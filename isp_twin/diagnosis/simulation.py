@@ -1,7 +1,7 @@
 """Several measured runs simulated side by side, for a batch of model variants.
 
-The runs become rows of one batched call of `isp_twin.axis_model.simulate`
-(padded to the longest), so P parameter sets on R runs cost one time loop of
+The runs become rows of one batched call of
+`isp_twin.substep_model.simulate_substeps` (padded to the longest), so P parameter sets on R runs cost one time loop of
 P*R rows: the per-step overhead, not the batch size, sets the price.
 """
 
@@ -12,12 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from isp_twin.axis_model import simulate
 from isp_twin.effects.batched import make_batched
 from isp_twin.errors import DataError
-from isp_twin.identification import gyro_reading
 from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE
 from isp_twin.parameters import EffectSpec, RateParams
+from isp_twin.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
 
 __all__ = ["WARMUP", "RunStack", "predict", "residuals", "residuals_many", "stack_runs"]
 
@@ -38,6 +37,8 @@ class RunStack:
             spinning motor.
         gyro_average: the model's rate is read as a gyro averaging over the
             sample (`isp_twin.identification.Timing`).
+        integration: how the model integrates a sample
+            (`isp_twin.substep_model.Integration`).
     """
 
     names: tuple[str, ...]
@@ -48,6 +49,7 @@ class RunStack:
     dt: float
     side: float | None = None
     gyro_average: bool = False
+    integration: Integration = DEFAULT_INTEGRATION
 
     @property
     def n_samples(self) -> int:
@@ -66,7 +68,11 @@ WARMUP = 50
 
 
 def stack_runs(
-    runs: Sequence, warmup: int = WARMUP, side: float | None = None, gyro_average: bool = False
+    runs: Sequence,
+    warmup: int = WARMUP,
+    side: float | None = None,
+    gyro_average: bool = False,
+    integration: Integration = DEFAULT_INTEGRATION,
 ) -> RunStack:
     """Stack runs (`isp_twin.measured.MeasuredData` or anything with
     ``name, u, omega, angle, dt``).
@@ -104,7 +110,8 @@ def stack_runs(
             sigma = 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0)
             if abs(w[0]) <= 3.0 * sigma:
                 omega[i, 0] = 0.0
-    return RunStack(tuple(r.name for r in runs), u, omega, angle, mask, dt, side, gyro_average)
+    names = tuple(r.name for r in runs)
+    return RunStack(names, u, omega, angle, mask, dt, side, gyro_average, integration)
 
 
 def predict(
@@ -140,7 +147,7 @@ def predict(
                 spec.name, {k: np.full(p * r, v) for k, v in spec.params.items()}, stack.dt
             )
         )
-    resp = simulate(
+    resp = simulate_substeps(
         RateParams.from_vector(rows),
         np.tile(stack.u, (p, 1)),
         stack.dt,
@@ -149,6 +156,8 @@ def predict(
         angle_measured=np.tile(stack.angle, (p, 1)),
         effects=batch,
         side=stack.side,
+        integration=stack.integration,
+        gyro_average=stack.gyro_average,
     )
     if not np.all(np.isfinite(resp.omega)):
         # A diverging variant is a bad parameter set, not an error: make it lose.
@@ -159,9 +168,8 @@ def predict(
             resp.omega_true,
         )
     shape = (p, r, n)
-    omega = gyro_reading(resp.omega, stack.gyro_average)
     return type(resp)(
-        omega.reshape(shape),
+        resp.omega.reshape(shape),
         resp.angle.reshape(shape),
         resp.regime.reshape(shape),
         None if resp.omega_true is None else resp.omega_true.reshape(shape),

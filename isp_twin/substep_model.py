@@ -1,0 +1,357 @@
+"""Eq. 6 integrated in m sub-steps per sample: the model identification and diagnosis fit.
+
+Eq. 6 holds the friction over the whole sample. On a fast axis (mechanical
+time constant of a few ms, a sharp Stribeck drop, a breakaway or reversal
+inside a sample) that cannot represent a real axis: on the reference
+simulator even the true parameters written in Eq. 6 form leave 3-17 noise
+floors on held-out runs (docs/identification.md). This module integrates the
+same physics in its continuous form with `Integration.substeps` steps per
+sample, the parameters still in the paper's per-sample rate form
+(`RateParams`: pole a, gain b·Ke, levels b·Ts, b·Tc per sample, alpha).
+
+Per sub-step of length T/m, regime r (rate form per sample):
+
+    p = a**(1/m),  c = (1 - p) / (1 - a)
+    w <- p w + c (b·Ke u + accel T) - c sgn(w) b·Tf(w)
+
+the exact zero-order hold of ``J dw/dt = Km u - eta w - F`` over T/m with F
+held over the sub-step, so m sub-steps of a constant drive give exactly
+Eq. 6's sample (c -> 1 at m = 1). The command is held over the sample;
+effects (`isp_twin.effects`) are evaluated once per sample, at the angle that
+selects the half-plane and the rate at the sample's start, and their
+acceleration is held over its sub-steps like the command (their command and
+measure hooks act per sample too); with ``exact_effect_hold`` the
+acceleration gets the exact hold factor ``(1 - p)/(-ln a)`` per sub-step
+instead of c (`_substep_table`). The stick test of Eq. 5 is made at every
+sub-step. With ``midpoint_friction`` the sliding friction is taken at the mean
+of the sub-step's start rate and a predicted end rate (second order in the
+sub-step); with ``split_reversals`` a sub-step in which the rate reaches zero
+ends there and the rest of it is spent on the stick/breakaway decision
+(a Karnopp band that cannot swallow part of a sub-step of motion). The gyro
+reading is the rate at the sample instant, or its mean over the sample's
+sub-steps (trapezoid; with m = 1 the mean of both ends, `gyro_reading`).
+The half-plane of sub-step j of the step into sample k is read from the given
+angle at ``k - 1 + j/m`` (linear interpolation), or from the model's own
+angle ``y += (T/m) w``.
+
+`EQ6` (m = 1, no midpoint friction, no split) is Eq. 6 exactly as
+`isp_twin.axis_model.simulate` computes it, up to the last bit of ``exp``
+(numpy's vectorized exp and the C library's differ by one ulp on a few
+per cent of arguments; with alpha = 0 the two agree bit for bit,
+`tests/test_substep_model.py`).
+
+The kernel is compiled with numba: a stick-slip loop over (rows, samples,
+sub-steps) that numpy cannot vectorize along time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from isp_twin.axis_model import AxisResponse
+from isp_twin.effects import Effect
+from isp_twin.errors import ParameterError
+from isp_twin.parameters import RateParams
+
+__all__ = ["Integration", "EQ6", "DEFAULT_INTEGRATION", "simulate_substeps"]
+
+
+@dataclass(frozen=True)
+class Integration:
+    """How the model integrates one sample (see module doc).
+
+    Attributes:
+        substeps: m, integration steps per sample [1] (>= 1).
+        midpoint_friction: sliding friction at the sub-step's mean rate.
+        split_reversals: a sub-step that reaches rate 0 decides stick or
+            breakaway for its remaining part.
+        exact_effect_hold: an effect's acceleration (torque/J) held over the
+            sample moves the rate by its exact zero-order hold,
+            ``accel*T*(1 - a)/(-ln a)``, instead of Eq. 6's ``accel*T`` (the
+            twin's explicit-Euler convention, docs/axis_model.md): 5 % apart
+            for a 10 ms axis, which left the true cable spring of a reference
+            axis at 3.7 noise sigmas.
+    """
+
+    substeps: int = 10
+    midpoint_friction: bool = True
+    split_reversals: bool = True
+    exact_effect_hold: bool = True
+
+    def __post_init__(self):
+        if int(self.substeps) != self.substeps or self.substeps < 1:
+            raise ParameterError(f"substeps must be an integer >= 1, got {self.substeps}")
+
+    def describe(self) -> str:
+        if self == EQ6:
+            return "Eq. 6 (friction held over the sample)"
+        extras = [
+            s
+            for s, on in (
+                ("midpoint friction", self.midpoint_friction),
+                ("reversals split", self.split_reversals),
+                ("exact hold of effects", self.exact_effect_hold),
+            )
+            if on
+        ]
+        return f"{self.substeps} sub-steps per sample" + (
+            f" ({', '.join(extras)})" if extras else ""
+        )
+
+
+#: Eq. 6 as the paper writes it.
+EQ6 = Integration(1, False, False, False)
+#: The model identification and diagnosis fit by default (docs/identification.md).
+DEFAULT_INTEGRATION = Integration()
+
+
+@njit(cache=True, nogil=True)
+def _advance(
+    table,
+    u,
+    extra,
+    side_y,
+    use_side,
+    fixed_side,
+    k_lo,
+    k_hi,
+    m,
+    dt,
+    mid,
+    split,
+    w_state,
+    y_state,
+    point,
+    reading,
+    angle,
+    regime,
+):  # pragma: no cover - compiled
+    """Advance every row from sample k_lo-1 to k_hi-1 (writes columns k_lo..k_hi-1).
+
+    table: (S, 4, 5) per-sub-step (p, c·gain, c·static, c·coulomb, alpha) and
+    and the effects' factor in column 5 of a (S, 4, 6) table (`_substep_table`);
+    u, extra: (S, N) per-sample command
+    and extra drive [rate form per sample]; side_y: (S, N) angle choosing the
+    half-plane (used when use_side); fixed_side: 0 none, 1 R, -1 L.
+    """
+    n_rows = u.shape[0]
+    h = dt / m
+    for i in range(n_rows):
+        w = w_state[i]
+        y = y_state[i]
+        for k in range(k_lo, k_hi):
+            uk = u[i, k - 1]
+            ek = extra[i, k - 1]
+            acc = 0.5 * w
+            idx = 0
+            for j in range(m):
+                if fixed_side != 0:
+                    left = fixed_side < 0
+                elif use_side:
+                    y0 = side_y[i, k - 1]
+                    if j == 0:
+                        ys = y0
+                    else:
+                        ys = y0 + (j / m) * (side_y[i, k] - y0)
+                    left = ys <= 0.0
+                else:
+                    left = y <= 0.0
+                side = 2 if left else 0
+                if w != 0.0:
+                    idx = side + (1 if w < 0.0 else 0)
+                    p = table[i, idx, 0]
+                    drive = table[i, idx, 1] * uk + table[i, idx, 5] * ek
+                    ts = table[i, idx, 2]
+                    tc = table[i, idx, 3]
+                    al = table[i, idx, 4]
+                    sgn = 1.0 if w > 0.0 else -1.0
+                    slide = sgn * (tc + (ts - tc) * np.exp(-al * abs(w)))
+                    w_new = p * w + drive - slide
+                    if mid and w_new * w > 0.0:
+                        wm = 0.5 * (w + w_new)
+                        slide = sgn * (tc + (ts - tc) * np.exp(-al * abs(wm)))
+                        w_new = p * w + drive - slide
+                    if w_new * w <= 0.0:
+                        rest_part = 0.0
+                        if split and w_new != 0.0:
+                            rest_part = 1.0 - w / (w - w_new)
+                        w_new = 0.0
+                        if rest_part > 0.0:
+                            # The rest of the sub-step starts at rest.
+                            r0 = side + (1 if uk < 0.0 else 0)
+                            d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
+                            idx = side + (1 if d < 0.0 else 0)
+                            ts2 = table[i, idx, 2]
+                            if abs(d) > ts2:
+                                w_new = rest_part * (d - (ts2 if d > 0.0 else -ts2))
+                    w = w_new
+                else:
+                    # At rest the command's sign picks the gain and the total
+                    # drive's sign the breakaway level (as `axis_model.simulate`).
+                    r0 = side + (1 if uk < 0.0 else 0)
+                    d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
+                    idx = side + (1 if d < 0.0 else 0)
+                    ts = table[i, idx, 2]
+                    if abs(d) > ts:
+                        w = d - (ts if d > 0.0 else -ts)
+                    else:
+                        w = 0.0
+                y = y + h * w
+                if j < m - 1:
+                    acc += w
+                else:
+                    acc += 0.5 * w
+            point[i, k] = w
+            reading[i, k] = acc / m
+            angle[i, k] = y
+            regime[i, k] = idx
+        w_state[i] = w
+        y_state[i] = y
+
+
+def _substep_table(
+    params: RateParams, n_rows: int, m: int, exact_effect_hold: bool = True
+) -> np.ndarray:
+    """Per-row, per-regime sub-step coefficients, shape (S, 4, 6).
+
+    Columns: p, c·gain, c·static, c·coulomb, alpha (see module doc), and the
+    factor of an effect's ``accel*T`` per sub-step: ``(1 - p)/(-ln a)``, the
+    exact hold of a constant acceleration over T/m (m of them sum to
+    ``(1 - a)/(-ln a)``, the zero-order-hold factor of the sample), or with
+    ``exact_effect_hold`` off, c (Eq. 6's ``accel*T`` per sample; 1 at m = 1).
+    """
+    cols = [
+        np.broadcast_to(np.atleast_2d(np.asarray(x, dtype=float)), (n_rows, 4))
+        for x in (params.pole, params.gain, params.static, params.coulomb, params.alpha)
+    ]
+    a, g, s, c_, al = cols
+    if m == 1:
+        p = a.copy()
+        c = np.ones_like(a)
+    else:
+        p = a ** (1.0 / m)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = np.where(a < 1.0, (1.0 - p) / (1.0 - a), 1.0 / m)
+    table = np.empty((n_rows, 4, 6))
+    table[..., 0] = p
+    table[..., 1] = c * g if m > 1 else g
+    table[..., 2] = c * s if m > 1 else s
+    table[..., 3] = c * c_ if m > 1 else c_
+    table[..., 4] = al
+    if exact_effect_hold:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            hold = np.where(a < 1.0, (1.0 - p) / -np.log(a), 1.0 / m)
+        table[..., 5] = hold
+    else:
+        table[..., 5] = c
+    return table
+
+
+def simulate_substeps(
+    params: RateParams,
+    u: np.ndarray,
+    dt: float,
+    omega0: float | np.ndarray = 0.0,
+    angle0: float | np.ndarray = 0.0,
+    angle_measured: np.ndarray | None = None,
+    effects: Sequence[Effect] = (),
+    side: float | None = None,
+    integration: Integration = DEFAULT_INTEGRATION,
+    gyro_average: bool = False,
+) -> AxisResponse:
+    """Simulate the sub-stepped Eq. 6 for a batch of parameter sets.
+
+    Args:
+        params: rate-form parameters, arrays (4,) or (P, 4).
+        u: command [digits], shape (N,) or (P, N).
+        dt: sample period T [s].
+        omega0: rate at sample 0 [rad/s], float or (P,).
+        angle0: angle at sample 0 [rad], float or (P,).
+        angle_measured: (N,) or (P, N) angle [rad] choosing the half-plane
+            (teacher forcing); None: the model's own angle.
+        effects: extra effects (reset here, evaluated per sample), parameters
+            floats or arrays (P,).
+        side: fix the half-plane (> 0: R, <= 0: L) whatever the angle.
+        integration: sub-steps and options (`Integration`).
+        gyro_average: the reading is the rate averaged over the sample.
+
+    Returns:
+        `AxisResponse` (shapes (N,) for unbatched params, else (P, N)):
+        ``omega`` is the gyro reading (averaged when asked, measurement
+        effects applied), ``omega_true`` the rate at the sample instants
+        when the two differ.
+    """
+    single = np.ndim(params.pole) == 1
+    u = np.asarray(u, dtype=float)
+    if u.ndim == 2:
+        single = False
+    n = u.shape[-1]
+    sizes = [np.atleast_2d(np.asarray(x)).shape[0] for x in (params.pole, params.gain)]
+    n_rows = max(
+        *sizes,
+        u.shape[0] if u.ndim == 2 else 1,
+        np.size(omega0),
+        np.size(angle0),
+        np.atleast_2d(angle_measured).shape[0] if angle_measured is not None else 1,
+    )
+    m = int(integration.substeps)
+    table = _substep_table(params, n_rows, m, integration.exact_effect_hold)
+    u_rows = np.ascontiguousarray(np.broadcast_to(u, (n_rows, n)), dtype=float)
+    if angle_measured is not None:
+        side_y = np.ascontiguousarray(
+            np.broadcast_to(np.asarray(angle_measured, dtype=float), (n_rows, n))
+        )
+    else:
+        side_y = np.zeros((1, 1))
+    fixed = 0 if side is None else (1 if float(side) > 0.0 else -1)
+    w = np.broadcast_to(np.asarray(omega0, dtype=float), (n_rows,)).copy()
+    y = np.broadcast_to(np.asarray(angle0, dtype=float), (n_rows,)).copy()
+    point = np.empty((n_rows, n))
+    reading = np.empty((n_rows, n))
+    angle = np.empty((n_rows, n))
+    regime = np.zeros((n_rows, n), dtype=np.int64)
+    point[:, 0] = w
+    reading[:, 0] = w
+    angle[:, 0] = y
+    commands = [e for e in effects if type(e).command is not Effect.command]
+    torques = [e for e in effects if type(e).acceleration is not Effect.acceleration]
+    sensors = [e for e in effects if type(e).measure is not Effect.measure]
+    for e in effects:
+        e.reset()
+    args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
+    use_side = angle_measured is not None
+    if not (commands or torques):
+        extra = np.zeros((n_rows, n))
+        _advance(table, u_rows, extra, side_y, use_side, fixed, 1, n, *args, w, y, point,
+                 reading, angle, regime)  # fmt: skip
+    else:
+        # Effects per sample: their command and acceleration held over the sub-steps.
+        u_eff = u_rows.copy()
+        extra = np.zeros((n_rows, n))
+        for k in range(1, n):
+            uk = u_rows[:, k - 1]
+            for e in commands:
+                uk = e.command(uk)
+            u_eff[:, k - 1] = uk
+            if torques:
+                at = side_y[:, k - 1] if use_side else y
+                extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
+            _advance(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args, w, y,
+                     point, reading, angle, regime)  # fmt: skip
+    out = reading if gyro_average else point
+    if sensors:
+        measured = np.empty_like(out)
+        for k in range(n):
+            r = out[:, k]
+            for e in sensors:
+                r = e.measure(r)
+            measured[:, k] = r
+        out = measured
+    true = None if out is point else point
+    if single:
+        return AxisResponse(out[0], angle[0], regime[0], None if true is None else true[0])
+    return AxisResponse(out, angle, regime, true)
