@@ -12,9 +12,9 @@ and with the same floating-point expressions (`Twin.sense`, `Twin.step`,
 `NotchFilter`, `FrictionFeedForward`, `Bound`, `OuterFollower`), so a run is
 bit-identical to the Python path (tests/test_closed_loop_kernel.py compares them);
 a change to one of those blocks must be made here too. Eq. 5 itself is not
-repeated: the scalar functions of `isp_twin.friction` are compiled here from
-their source (`_compile_scalar_law`), and an edit to friction.py that the
-numba cache missed is caught at import (`compiled_law_is_current`). The gyro noise is
+repeated: the kernels call `isp_twin.friction_compiled` (the scalar functions
+of `isp_twin.friction` compiled from their source), and an edit to friction.py
+that the numba cache missed is caught at import (`compiled_law_is_current`). The gyro noise is
 drawn before the run from the same generator, in the same order.
 
 State and configuration travel in flat arrays whose layouts are the
@@ -24,14 +24,14 @@ blocks, so the configuration has one source.
 
 from __future__ import annotations
 
-import types
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 from llvmlite import binding as llvm_binding
 
-from isp_twin import friction
+from isp_twin import friction_compiled as law
+from isp_twin.friction_compiled import law_probe_cases, python_law
 from isp_twin.twin import MAX_COMMAND, MAX_RATE, REST_RATE, Twin, TwinArrays, mujoco_library
 
 __all__ = [
@@ -320,23 +320,6 @@ F_GAIN, F_VISCOUS, F_TS, F_TC, F_ALPHA, F_REST_F, F_REST_B = 0, 4, 8, 12, 16, 20
 _BADQPOS, _BADQVEL, _BADQACC = 3, 4, 5
 
 
-def _compile_scalar_law() -> dict[str, numba.core.dispatcher.Dispatcher]:
-    """`friction.SCALAR_LAW` compiled by numba, unchanged from its Python source.
-
-    Each function is compiled in a copy of the friction module's namespace
-    where the others are their compiled forms, so one may call another
-    (`friction.sliding` calls `friction.stribeck`).
-    """
-    namespace = dict(vars(friction))
-    compiled = {}
-    for name in friction.SCALAR_LAW:
-        f = namespace[name]
-        compiled[name] = namespace[name] = numba.njit(
-            types.FunctionType(f.__code__, namespace, f.__name__, f.__defaults__)
-        )
-    return compiled
-
-
 if _LIB is not None:
     # Called by symbol name, resolved in the library the bindings loaded (not
     # through a ctypes pointer, whose address would stop numba caching the kernel).
@@ -346,15 +329,6 @@ if _LIB is not None:
     _mj_step2 = numba.types.ExternalFunction("mj_step2", _STEP_SIGNATURE)
 
     _F1, _F2, _I1 = numba.float64[::1], numba.float64[:, ::1], numba.int64[::1]
-
-    # Eq. 5 compiled from its one source (`isp_twin.friction`'s scalar form).
-    _FRICTION = _compile_scalar_law()
-    _side_of, _regime_of = _FRICTION["side_of"], _FRICTION["regime_of"]
-    _stribeck, _sliding, _stiction = (
-        _FRICTION["stribeck"],
-        _FRICTION["sliding"],
-        _FRICTION["stiction"],
-    )
 
     @numba.njit(
         numba.int64(_F1, _F1, _F1, numba.int64, _F2, _I1, _F1, _F1, _F1),
@@ -368,10 +342,10 @@ if _LIB is not None:
             if not -max_rate < w < max_rate:
                 err[0], err[1] = s, w
                 return TWIN_RATE
-            side = _side_of(qpos[lo + s])
+            side = law.side_of(qpos[lo + s])
             if w > rest_rate or w < -rest_rate:
-                r = _regime_of(side, w)
-                frictionloss[lo + s] = _stribeck(
+                r = law.regime_of(side, w)
+                frictionloss[lo + s] = law.stribeck(
                     abs(w), table[s, F_TS + r], table[s, F_TC + r], table[s, F_ALPHA + r]
                 )
                 tw_f[4 + s] = -table[s, F_VISCOUS + r] * w  # push
@@ -512,12 +486,12 @@ if _LIB is not None:
                 # FrictionFeedForward.step(omega2, u_pi, angle)
                 if p[I_NFC] != 0.0:
                     om, ang = meas_r[i], meas_q[i]
-                    side = _side_of(ang)
+                    side = law.side_of(ang)
                     if abs(om) > p[I_REST]:
-                        r = _regime_of(side, om)
-                        u1 = _sliding(om, p[I_TS + r], p[I_TC + r], p[I_ALPHA + r])
+                        r = law.regime_of(side, om)
+                        u1 = law.sliding(om, p[I_TS + r], p[I_TC + r], p[I_ALPHA + r])
                     else:
-                        u1 = _stiction(u_pi, p[I_TS + _regime_of(side, u_pi)])
+                        u1 = law.stiction(u_pi, p[I_TS + law.regime_of(side, u_pi)])
                     taps = cint[N_TAPS0 + i]
                     hist[i, sint[K_NFC_POS0 + i]] = u1
                     sint[K_NFC_POS0 + i] = (sint[K_NFC_POS0 + i] + 1) % taps
@@ -593,7 +567,7 @@ if _LIB is not None:
                     return TWIN_COMMAND
                 r = tw_i[s]
                 if r < 0:
-                    r = _regime_of(-1 - r, u)
+                    r = law.regime_of(-1 - r, u)
                 tw_i[4 + s] = r
                 ctrl[alo + s] = table[s, F_GAIN + r] * u
             for i in range(3):
@@ -620,50 +594,8 @@ if _LIB is not None:
 
     @numba.njit(numba.float64[:, ::1](numba.float64[:, ::1]), cache=True)
     def _law_probe(cases):
-        """The compiled scalar law on ``cases`` rows (angle, rate, drive, Ts, Tc, alpha).
-
-        Returns rows (side, regime, stribeck, sliding (0 at rest), stiction).
-        """
-        out = np.empty((cases.shape[0], 5))
-        for i in range(cases.shape[0]):
-            angle, rate, drive = cases[i, 0], cases[i, 1], cases[i, 2]
-            ts, tc, al = cases[i, 3], cases[i, 4], cases[i, 5]
-            side = _side_of(angle)
-            out[i, 0] = side
-            out[i, 1] = _regime_of(side, rate if rate != 0.0 else drive)
-            out[i, 2] = _stribeck(abs(rate), ts, tc, al)
-            out[i, 3] = _sliding(rate, ts, tc, al) if rate != 0.0 else 0.0
-            out[i, 4] = _stiction(drive, ts)
-        return out
-
-
-def law_probe_cases() -> np.ndarray:
-    """Probe rows (angle, rate, drive, Ts, Tc, alpha): both sides, all regimes, rest and moving."""
-    rows = [
-        (angle, rate, drive, 1.5, 0.6, alpha)
-        for angle in (0.3, 0.0, -0.3)
-        for rate in (0.2, -0.7, 0.0)
-        for drive in (2.0, -2.0, 0.4, -0.4, 0.0)
-        for alpha in (0.0, 3.0)
-    ]
-    return np.array(rows)
-
-
-def python_law(cases: np.ndarray) -> np.ndarray:
-    """`_law_probe` computed by `isp_twin.friction`'s scalar functions in Python."""
-    out = []
-    for angle, rate, drive, ts, tc, al in cases.tolist():
-        side = friction.side_of(angle)
-        out.append(
-            (
-                side,
-                friction.regime_of(side, rate if rate != 0.0 else drive),
-                friction.stribeck(abs(rate), ts, tc, al),
-                friction.sliding(rate, ts, tc, al) if rate != 0.0 else 0.0,
-                friction.stiction(drive, ts),
-            )
-        )
-    return np.array(out)
+        """`friction_compiled.probe`, cached with these kernels (stale with them)."""
+        return law.probe(cases)
 
 
 def compiled_law_is_current() -> bool:

@@ -52,9 +52,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from isp_twin import friction_compiled as law
 from isp_twin.axis_model import AxisResponse
 from isp_twin.effects import Effect
 from isp_twin.errors import ParameterError
+from isp_twin.friction_compiled import law_probe_cases, python_law
 from isp_twin.parameters import RateParams
 
 __all__ = ["Integration", "EQ6", "DEFAULT_INTEGRATION", "simulate_substeps"]
@@ -150,30 +152,28 @@ def _advance(
             idx = 0
             for j in range(m):
                 if fixed_side != 0:
-                    left = fixed_side < 0
+                    side = law.side_of(fixed_side)
                 elif use_side:
                     y0 = side_y[i, k - 1]
                     if j == 0:
                         ys = y0
                     else:
                         ys = y0 + (j / m) * (side_y[i, k] - y0)
-                    left = ys <= 0.0
+                    side = law.side_of(ys)
                 else:
-                    left = y <= 0.0
-                side = 2 if left else 0
+                    side = law.side_of(y)
                 if w != 0.0:
-                    idx = side + (1 if w < 0.0 else 0)
+                    idx = law.regime_of(side, w)
                     p = table[i, idx, 0]
                     drive = table[i, idx, 1] * uk + table[i, idx, 5] * ek
                     ts = table[i, idx, 2]
                     tc = table[i, idx, 3]
                     al = table[i, idx, 4]
-                    sgn = 1.0 if w > 0.0 else -1.0
-                    slide = sgn * (tc + (ts - tc) * np.exp(-al * abs(w)))
+                    slide = law.sliding(w, ts, tc, al)
                     w_new = p * w + drive - slide
                     if mid and w_new * w > 0.0:
                         wm = 0.5 * (w + w_new)
-                        slide = sgn * (tc + (ts - tc) * np.exp(-al * abs(wm)))
+                        slide = law.sliding(wm, ts, tc, al)
                         w_new = p * w + drive - slide
                     if w_new * w <= 0.0:
                         rest_part = 0.0
@@ -182,22 +182,22 @@ def _advance(
                         w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
-                            r0 = side + (1 if uk < 0.0 else 0)
+                            r0 = law.regime_of(side, uk)
                             d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
-                            idx = side + (1 if d < 0.0 else 0)
+                            idx = law.regime_of(side, d)
                             ts2 = table[i, idx, 2]
                             if abs(d) > ts2:
-                                w_new = rest_part * (d - (ts2 if d > 0.0 else -ts2))
+                                w_new = rest_part * (d - law.stiction(d, ts2))
                     w = w_new
                 else:
                     # At rest the command's sign picks the gain and the total
                     # drive's sign the breakaway level (as `axis_model.simulate`).
-                    r0 = side + (1 if uk < 0.0 else 0)
+                    r0 = law.regime_of(side, uk)
                     d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
-                    idx = side + (1 if d < 0.0 else 0)
+                    idx = law.regime_of(side, d)
                     ts = table[i, idx, 2]
                     if abs(d) > ts:
-                        w = d - (ts if d > 0.0 else -ts)
+                        w = d - law.stiction(d, ts)
                     else:
                         w = 0.0
                 y = y + h * w
@@ -211,6 +211,30 @@ def _advance(
             regime[i, k] = idx
         w_state[i] = w
         y_state[i] = y
+
+
+@njit(cache=True)
+def _law_probe(cases):  # pragma: no cover - compiled
+    """`friction_compiled.probe`, cached with `_advance` (stale with it)."""
+    return law.probe(cases)
+
+
+def compiled_law_is_current() -> bool:
+    """Whether the cached kernel's Eq. 5 is friction.py's, bit for bit, on the probe.
+
+    numba's cache checks only this file's time stamp: an edit to friction.py
+    alone would leave `_advance` on the old law (`isp_twin.friction_compiled`).
+    """
+    cases = law_probe_cases()
+    return bool(np.array_equal(_law_probe(cases), python_law(cases)))
+
+
+if not compiled_law_is_current():
+    # Stale cache: compile afresh (this rewrites the cache).
+    for _kernel in (_law_probe, _advance):
+        _kernel.recompile()
+    if not compiled_law_is_current():
+        raise ImportError("substep_model: the compiled friction law differs from friction.py")
 
 
 def _substep_table(

@@ -142,3 +142,22 @@ def test_a_bad_substep_count_is_one_clear_error(tmp_path, capsys, command):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--substeps must be between 1 and 100, got 0" in err[0]
     assert not (tmp_path / "p.yaml").exists()
+
+
+def test_the_kernel_calls_friction_py_compiled_bit_for_bit():
+    from isp_twin import substep_model
+    from isp_twin.friction_compiled import law_probe_cases, python_law
+
+    cases = law_probe_cases()
+    compiled = substep_model._law_probe(cases)
+    assert set(compiled[:, 1].tolist()) == {0.0, 1.0, 2.0, 3.0}  # every regime probed
+    assert np.array_equal(compiled, python_law(cases))
+    assert substep_model.compiled_law_is_current()
+
+
+def test_an_edit_to_friction_py_makes_the_cached_substep_kernel_stale(monkeypatch):
+    from isp_twin import friction, substep_model
+
+    law = friction.stribeck
+    monkeypatch.setattr(friction, "stribeck", lambda *args: law(*args) * (1 + 1e-12))
+    assert not substep_model.compiled_law_is_current()
