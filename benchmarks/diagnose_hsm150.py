@@ -49,6 +49,10 @@ def main() -> int:
         "right",
         "--max-rounds",
         str(args.max_rounds),
+        # 6 runs x 20 000 samples: above the default long-log limit (100 000),
+        # which guards a user against an unexpected cost; this benchmark knows its cost.
+        "--max-samples",
+        "200000",
         "--out",
         str(args.out / "hsm150_diagnosed.yaml"),
         "--report",
