@@ -355,7 +355,9 @@ def diagnose(
             the file's parameters, as `identify` chooses it.
         reopen: re-start the `REOPEN_TOP` leading significant candidates'
             rate parameters from the equation-error start with their effect
-            held (`_reopen_rates`) and judge them again. Opt-in: on benchmark
+            held (`_reopen_rates`), refit them with `identify`'s global
+            method and their effect held when none is at the noise
+            (`_refit_globally`), and judge them again. Opt-in: on benchmark
             seed cable_spring 0 it brings the spring and an unbalance (alike
             near angle 0) both to the noise and the unbalance ranks first
             (docs/diagnosis.md "Re-opened rate parameters").
@@ -533,6 +535,32 @@ def diagnose(
                 for v in verdicts
             ]
             verdicts.sort(key=lambda v: v.holdout_rmse)
+            if not any(
+                v.significant and _rms(held_of[v.name]) <= CONVERGED_RATIO * floor for v in verdicts
+            ):
+                # Still above the noise: the rate parameters of the re-opened
+                # leaders identified again with `identify`'s global method and
+                # their effect held (their effect is now estimated apart from
+                # the distorted base), kept if the training cost drops.
+                for n in names_r:
+                    g = _refit_globally(raw_runs, ax, fits[n], train, seed, side, timing, max_iter)
+                    if g.sse < fits[n].sse:
+                        fits[n] = g
+                        held_of[n] = held_residuals([g])[0]
+                        reopened[n] = g
+                verdicts = [
+                    _checked(
+                        judge(
+                            v.name, base_held, held_of[v.name], base.bic, fits[v.name].bic, floor
+                        ),
+                        fits[v.name],
+                        False,
+                    )
+                    if v.name in reopened
+                    else v
+                    for v in verdicts
+                ]
+                verdicts.sort(key=lambda v: v.holdout_rmse)
         best = select(verdicts, floor)
         selected = best.name if best else BASELINE
         after_held = held_of[selected] if best else base_held
