@@ -153,3 +153,26 @@ def test_a_fixed_side_picks_the_regimes_as_a_positive_angle_would(rate):
     positive = simulate(rate, u, DT, angle_measured=np.abs(angle) + 1.0)
     np.testing.assert_array_equal(fixed.omega, positive.omega)
     assert set(np.unique(fixed.regime[1:])) <= {0, 1}
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_reopened_rates_never_fit_worse_and_keep_a_known_cable_spring(rate, seed):
+    # The candidate refitted from a base that absorbed the spring into its
+    # friction levels, then re-opened from the equation-error start with the
+    # spring held (`search._reopen_rates`): a re-start is kept only if it fits
+    # the training runs better, and the spring stays the one that made the data.
+    from isp_twin.diagnosis.search import _reopen_rates
+
+    rng = np.random.default_rng(seed)
+    truth = EffectSpec("cable_spring", {"stiffness_1_s2": 40.0, "offset_rad_s2": 0.0})
+    runs = [
+        make_run(f"r{i}", rate, excitation(rng, 1500, DT), DT, rng, [truth], angle0=0.1)
+        for i in range(2)
+    ]
+    st = stack_runs(runs, integration=EQ6)
+    base = fit_candidates(st, rate.to_vector(), [BASELINE], max_iter=8)[BASELINE]
+    local = fit_candidates(st, base.rate_vector, ["cable_spring"], max_iter=8)["cable_spring"]
+    again = _reopen_rates(runs, "measured", local, st, 8)
+    assert again.name == "cable_spring"
+    assert again.sse <= local.sse < base.sse
+    assert again.params["stiffness_1_s2"] == pytest.approx(40.0, rel=0.1)

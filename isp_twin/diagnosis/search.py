@@ -23,12 +23,19 @@ from isp_twin.diagnosis.candidates import (
 )
 from isp_twin.diagnosis.residual import ResidualAnalysis, analyse, noise_floor, residual_context
 from isp_twin.diagnosis.selection import Verdict, judge, select
-from isp_twin.diagnosis.simulation import RunStack, predict
+from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
 from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.effects import EFFECTS
 from isp_twin.errors import DataError, ParameterError, nearest
-from isp_twin.identification import TIMINGS, Timing, identify, rmse, side_angle
+from isp_twin.identification import (
+    TIMINGS,
+    Timing,
+    equation_error_estimate,
+    identify,
+    rmse,
+    side_angle,
+)
 from isp_twin.identification import Settings as IdSettings
 from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
 from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
@@ -40,6 +47,17 @@ __all__ = ["LIBRARY", "Diagnosis", "RoundResult", "diagnose", "split_in_time"]
 
 #: Levenberg-Marquardt iterations per refit (8: LuGre needs them, docs/diagnosis.md).
 DEFAULT_ITERATIONS = 8
+
+#: Equation-error re-starts of the winner's rate parameters (`_reopen_rates`).
+REOPEN_CYCLES = 2
+#: Leading significant candidates re-started (`_reopen_rates`).
+REOPEN_TOP = 2
+#: Levenberg-Marquardt iterations of each re-start (16: the 20 rate parameters
+#: move far from the distorted base; 8 left the training sse 8 % higher on dev
+#: seed 1002, cogging).
+REOPEN_ITER = 16
+#: Multiples of the winner's strength parameters tried as re-starts (`_reopen_rates`).
+REOPEN_FACTORS = (0.5, 1.0, 1.5, 2.0)
 
 #: The candidate effects, in report order.
 LIBRARY: tuple[str, ...] = (
@@ -296,6 +314,7 @@ def diagnose(
     base_search: bool = False,
     integration: Integration = DEFAULT_INTEGRATION,
     timing: Timing | None = None,
+    reopen: bool = False,
 ) -> Diagnosis:
     """Diagnose what the model of one axis misses in measured open-loop runs.
 
@@ -334,6 +353,14 @@ def diagnose(
             found by the base model's global search (`base_search`), else
             the one of `isp_twin.identification.TIMINGS` that fits best at
             the file's parameters, as `identify` chooses it.
+        reopen: re-start the `REOPEN_TOP` leading significant candidates'
+            rate parameters from the equation-error start with their effect
+            held (`_reopen_rates`), refit them with `identify`'s global
+            method and their effect held when none is at the noise
+            (`_refit_globally`), and judge them again. Opt-in: on benchmark
+            seed cable_spring 0 it brings the spring and an unbalance (alike
+            near angle 0) both to the noise and the unbalance ranks first
+            (docs/diagnosis.md "Re-opened rate parameters").
 
     Raises:
         DataError: no runs, or a sample period that differs from the set's.
@@ -479,9 +506,64 @@ def diagnose(
         ]
         verdicts = [_checked(v, fits[v.name], v.name in failed) for v in verdicts]
         verdicts.sort(key=lambda v: v.holdout_rmse)
+        # The leading significant candidates' rate parameters re-opened from
+        # the equation-error start with their effect held (the base they were
+        # refitted from had absorbed part of the effect into the friction
+        # levels), then judged again: several, since effects that look alike
+        # on the data (a spring and an unbalance near angle 0) must compete
+        # after the same re-start.
+        held_of = {n: h for n, h in zip(remaining, held_all[1:])}
+        lead = [v.name for v in verdicts if v.significant][:REOPEN_TOP] if reopen else []
+        reopened = {}
+        for n in lead:
+            again = _reopen_rates(raw_runs, side, fits[n], train, max_iter)
+            if again.sse < fits[n].sse:
+                reopened[n] = again
+        if reopened:
+            names_r = list(reopened)
+            for n, h in zip(names_r, held_residuals([reopened[n] for n in names_r])):
+                fits[n] = reopened[n]
+                held_of[n] = h
+            verdicts = [
+                _checked(
+                    judge(v.name, base_held, held_of[v.name], base.bic, fits[v.name].bic, floor),
+                    fits[v.name],
+                    False,
+                )
+                if v.name in reopened
+                else v
+                for v in verdicts
+            ]
+            verdicts.sort(key=lambda v: v.holdout_rmse)
+            if not any(
+                v.significant and _rms(held_of[v.name]) <= CONVERGED_RATIO * floor for v in verdicts
+            ):
+                # Still above the noise: the rate parameters of the re-opened
+                # leaders identified again with `identify`'s global method and
+                # their effect held (their effect is now estimated apart from
+                # the distorted base), kept if the training cost drops.
+                for n in names_r:
+                    g = _refit_globally(raw_runs, ax, fits[n], train, seed, side, timing, max_iter)
+                    if g.sse < fits[n].sse:
+                        fits[n] = g
+                        held_of[n] = held_residuals([g])[0]
+                        reopened[n] = g
+                verdicts = [
+                    _checked(
+                        judge(
+                            v.name, base_held, held_of[v.name], base.bic, fits[v.name].bic, floor
+                        ),
+                        fits[v.name],
+                        False,
+                    )
+                    if v.name in reopened
+                    else v
+                    for v in verdicts
+                ]
+                verdicts.sort(key=lambda v: v.holdout_rmse)
         best = select(verdicts, floor)
         selected = best.name if best else BASELINE
-        after_held = held_all[1 + remaining.index(selected)] if best else base_held
+        after_held = held_of[selected] if best else base_held
         if best is not None and base_search:
             # The winner refitted with the base model's global method, its
             # effect held, then jointly polished: the base it was selected
@@ -568,6 +650,47 @@ def diagnose(
         timing=timing,
         integration=integration,
     )
+
+
+def _reopen_rates(raw_runs, side, fit, train, max_iter, cycles=REOPEN_CYCLES) -> CandidateFit:
+    """`fit` refitted from the equation-error start of the rate parameters
+    with its effects held (`equation_error_estimate`), effect and rate
+    parameters then refined together; `cycles` times, each from the last
+    effect estimate. The strength parameters (null value 0) are tried at
+    `REOPEN_FACTORS` times the estimate (the base's absorption biases them),
+    the best start simulated kept. The best (lowest training sse) of `fit`
+    and the cycles."""
+    cls = EFFECTS[fit.name]
+    strengths = [p for p in fit.params if cls.null.get(p, None) == 0.0]
+    best = fit
+    for _ in range(cycles):
+        trials = []
+        for f in REOPEN_FACTORS:
+            eff = {p: (v * f if p in strengths else v) for p, v in best.params.items()}
+            eff = {p: float(np.clip(v, *cls.bounds[p])) for p, v in eff.items()}
+            spec = best.fixed + (EffectSpec(fit.name, eff),)
+            x = equation_error_estimate(
+                raw_runs, RateParams.from_vector(best.rate_vector), side, effects=spec
+            ).to_vector()
+            trials.append((x, eff))
+        res = residuals_many(
+            train,
+            [(x[None], fit.name, {p: np.array([v]) for p, v in e.items()}) for x, e in trials],
+            fit.fixed,
+        )
+        k = int(np.argmin([float(r[0] @ r[0]) for r in res]))
+        again = fit_candidates(
+            train,
+            trials[k][0],
+            [fit.name],
+            fit.fixed,
+            starts={fit.name: trials[k][1]},
+            max_iter=REOPEN_ITER,
+        )[fit.name]
+        if not again.sse < best.sse:
+            break
+        best = again
+    return best
 
 
 def _refit_globally(raw_runs, ax, fit, train, seed, side, timing, max_iter) -> CandidateFit:
