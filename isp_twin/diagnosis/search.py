@@ -300,6 +300,29 @@ def _cv_residuals(
     return out
 
 
+def _judged_again(verdicts, reopened, fits, held_of, base_held, base_bic, floor):
+    """The verdicts with the re-opened candidates judged again, best held-out first.
+
+    Args:
+        verdicts: the current verdicts.
+        reopened: names of the candidates refitted since (their fits in `fits`).
+        fits, held_of: each candidate's fit and held-out residuals, by name.
+        base_held, base_bic, floor: the base model's held-out residuals and
+            BIC, and the noise floor, as `judge` takes them.
+    """
+    again = [
+        _checked(
+            judge(v.name, base_held, held_of[v.name], base_bic, fits[v.name].bic, floor),
+            fits[v.name],
+            False,
+        )
+        if v.name in reopened
+        else v
+        for v in verdicts
+    ]
+    return sorted(again, key=lambda v: v.holdout_rmse)
+
+
 def diagnose(
     runs: Sequence,
     params: ParameterSet,
@@ -524,17 +547,7 @@ def diagnose(
             for n, h in zip(names_r, held_residuals([reopened[n] for n in names_r])):
                 fits[n] = reopened[n]
                 held_of[n] = h
-            verdicts = [
-                _checked(
-                    judge(v.name, base_held, held_of[v.name], base.bic, fits[v.name].bic, floor),
-                    fits[v.name],
-                    False,
-                )
-                if v.name in reopened
-                else v
-                for v in verdicts
-            ]
-            verdicts.sort(key=lambda v: v.holdout_rmse)
+            verdicts = _judged_again(verdicts, reopened, fits, held_of, base_held, base.bic, floor)
             if not any(
                 v.significant and _rms(held_of[v.name]) <= CONVERGED_RATIO * floor for v in verdicts
             ):
@@ -548,19 +561,9 @@ def diagnose(
                         fits[n] = g
                         held_of[n] = held_residuals([g])[0]
                         reopened[n] = g
-                verdicts = [
-                    _checked(
-                        judge(
-                            v.name, base_held, held_of[v.name], base.bic, fits[v.name].bic, floor
-                        ),
-                        fits[v.name],
-                        False,
-                    )
-                    if v.name in reopened
-                    else v
-                    for v in verdicts
-                ]
-                verdicts.sort(key=lambda v: v.holdout_rmse)
+                verdicts = _judged_again(
+                    verdicts, reopened, fits, held_of, base_held, base.bic, floor
+                )
         best = select(verdicts, floor)
         selected = best.name if best else BASELINE
         after_held = held_of[selected] if best else base_held
