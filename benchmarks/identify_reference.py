@@ -109,6 +109,19 @@ def run_command(
     return code, time.perf_counter() - start, cpu, lines[-1] if lines else "", peak_mb
 
 
+def _record_command(rec: dict, args: list[str], cwd: Path, timeout_s: float) -> bool:
+    """Run one command (`run_command`) and record its times, exit code and peak memory
+    under ``<command>_...`` in `rec`; False (with ``rec["error"]``) if it failed."""
+    name = args[0]
+    code, secs, cpu, last, peak = run_command(args, cwd, timeout_s)
+    rec[f"{name}_s"], rec[f"{name}_cpu_s"], rec[f"{name}_code"] = secs, cpu, code
+    rec[f"{name}_peak_mb"] = peak
+    if code != 0:
+        rec["error"] = f"{name} exit {code}: {last}"
+        return False
+    return True
+
+
 def param_ok(name: str, key: str, fitted: float, true: float, dt: float) -> bool:
     """The issue's tolerance for one effect parameter."""
     if key in PHASES:
@@ -147,7 +160,8 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
     rec["noise_deg_s"] = sigma
     rec["time_constant_s"] = truth["physical"]["time_constant_s"]
 
-    code, secs, cpu, last, peak = run_command(
+    if not _record_command(
+        rec,
         [
             "identify",
             "train1.csv",
@@ -163,11 +177,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
         ],
         folder,
         timeout_s,
-    )
-    rec["identify_s"], rec["identify_cpu_s"], rec["identify_code"] = secs, cpu, code
-    rec["identify_peak_mb"] = peak
-    if code != 0:
-        rec["error"] = f"identify exit {code}: {last}"
+    ):
         return rec
     ident = json.loads((folder / "identify.json").read_text())
     train = [ident["rmse_train"][n] for n in RUN_NAMES[:2]]  # deg/s, equal lengths
@@ -181,7 +191,8 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
     ]
     rec["identify_gain_coulomb_median_rel_error"] = float(np.median(errs))
 
-    code, secs, cpu, last, peak = run_command(
+    if not _record_command(
+        rec,
         [
             "diagnose",
             "train1.csv",
@@ -200,11 +211,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
         ],
         folder,
         timeout_s,
-    )
-    rec["diagnose_s"], rec["diagnose_cpu_s"], rec["diagnose_code"] = secs, cpu, code
-    rec["diagnose_peak_mb"] = peak
-    if code != 0:
-        rec["error"] = f"diagnose exit {code}: {last}"
+    ):
         return rec
     diag = json.loads((folder / "diagnose.json").read_text())
     selected = diag["selected_effect"]

@@ -253,6 +253,18 @@ def _unknown(where: str, key: Any, allowed: tuple[str, ...]) -> RigError:
     )
 
 
+def _fields(raw: Any, where: str, allowed: tuple[str, ...], required: tuple[str, ...], what: str):
+    """Check that `raw` is a mapping with only `allowed` keys and every `required` one."""
+    if not isinstance(raw, Mapping):
+        raise RigError(f"{where}: expected {what}, got {raw!r}")
+    for key in raw:
+        if key not in allowed:
+            raise _unknown(f"{where}.", key, allowed)
+    for key in required:
+        if key not in raw:
+            raise RigError(f"{where}: missing key '{key}' (required: {', '.join(required)})")
+
+
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise RigError(f"{where}: expected a finite number, got {value!r}")
@@ -279,14 +291,7 @@ def _cells(value: Any, where: str) -> tuple[str, ...]:
 def _parse_knob(name: str, raw: Any, where: str) -> Knob:
     from isp_twin.scenario import check_scenario_value
 
-    if not isinstance(raw, Mapping):
-        raise RigError(f"{where}: expected a mapping of keys, got {raw!r}")
-    for key in raw:
-        if key not in _KNOB_KEYS:
-            raise _unknown(f"{where}.", key, _KNOB_KEYS)
-    for key in _REQUIRED:
-        if key not in raw:
-            raise RigError(f"{where}: missing key '{key}' (required: {', '.join(_REQUIRED)})")
+    _fields(raw, where, _KNOB_KEYS, _REQUIRED, "a mapping of keys")
     if ("range" in raw) == ("choices" in raw):
         raise RigError(f"{where}: give either 'range' (a number) or 'choices' (a name)")
     for key in ("unit", "note"):
@@ -362,14 +367,7 @@ def _parse_knob(name: str, raw: Any, where: str) -> Knob:
 def _parse_fit(raw: Any, where: str, keys, cells, span) -> KnobFit:
     from isp_twin.scenario import check_scenario_value
 
-    if not isinstance(raw, Mapping):
-        raise RigError(f"{where}: expected a mapping with cells and values, got {raw!r}")
-    for key in raw:
-        if key not in _FIT_KEYS:
-            raise _unknown(f"{where}.", key, _FIT_KEYS)
-    for key in _FIT_KEYS:
-        if key not in raw:
-            raise RigError(f"{where}: missing key '{key}' (required: {', '.join(_FIT_KEYS)})")
+    _fields(raw, where, _FIT_KEYS, _FIT_KEYS, "a mapping with cells and values")
     if span is None:
         raise RigError(f"{where}: only a numeric knob (with a range) can be fitted")
     fit_cells = _cells(raw["cells"], f"{where}.cells")

@@ -229,12 +229,25 @@ def compiled_law_is_current() -> bool:
     return bool(np.array_equal(_law_probe(cases), python_law(cases)))
 
 
-if not compiled_law_is_current():
-    # Stale cache: compile afresh (this rewrites the cache).
-    for _kernel in (_law_probe, _advance):
-        _kernel.recompile()
+_LAW_CHECKED = False
+
+
+def _ensure_current_law() -> None:
+    """Recompile a stale cached kernel, once per process, at the first simulation.
+
+    Not at import: every command imports this module (its `Integration`), and
+    loading the cached kernel costs ~0.1 s that only identify/diagnose need.
+    """
+    global _LAW_CHECKED
+    if _LAW_CHECKED:
+        return
     if not compiled_law_is_current():
-        raise ImportError("substep_model: the compiled friction law differs from friction.py")
+        # Stale cache: compile afresh (this rewrites the cache).
+        for kernel in (_law_probe, _advance):
+            kernel.recompile()
+        if not compiled_law_is_current():
+            raise RuntimeError("substep_model: the compiled friction law differs from friction.py")
+    _LAW_CHECKED = True
 
 
 def _substep_table(
@@ -309,6 +322,7 @@ def simulate_substeps(
         effects applied), ``omega_true`` the rate at the sample instants
         when the two differ.
     """
+    _ensure_current_law()
     single = np.ndim(params.pole) == 1
     u = np.asarray(u, dtype=float)
     if u.ndim == 2:
