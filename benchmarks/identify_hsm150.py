@@ -142,13 +142,13 @@ def main() -> int:
     # Residual shape: mean error before/after the step and in the transients.
     rate = axis.rate_params()
     mapping = mapping_from_options(MAP)
-    settings = Settings(side="right")
+    settings = Settings(side_source="right")
     print(
         "residual (model - measured) [rad/s]: mean over 0-1 s, 1-10 s, 10-11 s, 11-20 s; lag-1 corr"
     )
     for n in TRAIN + VALIDATE:
         d = load_measured(args.data / f"{n}.mat", mapping)
-        e = simulate_data(rate, d, settings.side, settings.rest_rate_deg_s).omega - d.omega
+        e = simulate_data(rate, d, settings.side_source, settings.rest_rate_deg_s).omega - d.omega
         parts = [e[(d.t >= a) & (d.t < b)].mean() for a, b in ((0, 1), (1, 10), (10, 11), (11, 20))]
         z = e - e.mean()
         rho = float(z[1:] @ z[:-1] / (z @ z)) if np.any(z) else math.nan

@@ -43,6 +43,7 @@ from isp_twin.friction import (
     stribeck_magnitude,
 )
 from isp_twin.parameters import RateParams
+from isp_twin.vocabulary import SIDE_R, check_side
 
 __all__ = ["AxisResponse", "simulate", "steady_rate"]
 
@@ -75,7 +76,7 @@ def simulate(
     angle_limit: float | None = None,
     extra_rate: np.ndarray | None = None,
     effects: Sequence[Effect] = (),
-    side: float | None = None,
+    side: int | None = None,
 ) -> AxisResponse:
     """Simulate Eq. 6 for a batch of parameter sets.
 
@@ -96,8 +97,8 @@ def simulate(
         effects: extra effects (reset here, then stepped); their parameters
             are floats or arrays of shape (P,) matching the batch
             (`isp_twin.effects.batched.make_batched`).
-        side: fix the half-plane for the regime choice (> 0: R, <= 0: L)
-            whatever the angle (a freely spinning motor, where the paper's
+        side: fix the half-plane for the regime choice (`SIDE_R` or
+            `SIDE_L`) whatever the angle (a freely spinning motor, where the paper's
             split means nothing); the effects still see the angle.
 
     Returns:
@@ -150,7 +151,8 @@ def simulate(
     table = np.stack([pole, gain, static, coulomb, alpha], axis=-1).reshape(n_sets * 4, 5)
     gain_flat = table[:, 1]
     base = rows * 4
-    fixed_side = None if side is None else float(side)
+    # A fixed side enters the regime choice as an angle on that side.
+    fixed_side = None if check_side(side) is None else (1.0 if side == SIDE_R else -1.0)
     for k in range(1, n):
         side_angle = y if angle_measured is None else angle_measured[k - 1]
         uk = u[k - 1]

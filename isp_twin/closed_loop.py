@@ -45,9 +45,10 @@ from isp_twin.errors import IspTwinError, ScenarioError, SimulationDiverged
 from isp_twin.metrics import run_metrics
 from isp_twin.parameters import ParameterSet, load_parameters
 from isp_twin.results import RunResult
-from isp_twin.scenario import INNER_AXES, OUTER_AXES, TABLE_AXES, Motion, Scenario
+from isp_twin.scenario import Motion, Scenario
 from isp_twin.signals import CLOSED_LOOP_SIGNALS
 from isp_twin.units import DEG
+from isp_twin.vocabulary import INNER_AXES, OUTER_AXES, TABLE_JOINTS
 
 __all__ = [
     "DIVERGED_RATE",
@@ -177,7 +178,7 @@ class ClosedLoop:
         self.t = np.arange(n) * dt
         motions = scenario.turntable.motions()
         # Targets for t_1 .. t_n: step k drives the table to its angle at t_{k+1}.
-        targets = np.stack([table_angles(motions[a], self.t + dt) for a in TABLE_AXES], axis=1)
+        targets = np.stack([table_angles(motions[a], self.t + dt) for a in TABLE_JOINTS], axis=1)
         self._targets_array = targets
         g = scenario.gyro
         self._gyro_model = g

@@ -27,8 +27,9 @@ import numpy as np
 from isp_twin.errors import ParameterError
 from isp_twin.measured import MIN_SAMPLES, MeasuredData
 from isp_twin.open_loop import simulate_open_loop
-from isp_twin.parameters import AXES, ParameterSet
+from isp_twin.parameters import ParameterSet
 from isp_twin.units import DEG
+from isp_twin.vocabulary import GIMBAL_AXES
 
 __all__ = [
     "Excitation",
@@ -185,7 +186,7 @@ def generate_openloop(
 
     Args:
         params: the true parameters.
-        axis: gimbal axis (one of `AXES`).
+        axis: gimbal axis (one of `GIMBAL_AXES`).
         amplitude_digits, freq_hz, offset_digits: the cosine input of Eq. 7.
         n_samples, dt: length and sample period [s]; dt must equal the
             parameter set's sample time (the parameters are per sample).
@@ -199,8 +200,8 @@ def generate_openloop(
     Returns:
         `MeasuredData` with u in digits, SI rate and angle.
     """
-    if axis not in AXES:
-        raise ParameterError(f"axis '{axis}' unknown; allowed: {', '.join(AXES)}")
+    if axis not in GIMBAL_AXES:
+        raise ParameterError(f"axis '{axis}' unknown; allowed: {', '.join(GIMBAL_AXES)}")
     if not math.isclose(dt, params.sample_time_s, rel_tol=1e-9):
         raise ParameterError(
             f"dt {dt} s differs from the parameter set's sample_time_s {params.sample_time_s} s"

@@ -29,6 +29,9 @@ import math
 
 import numpy as np
 
+# The side indices are the vocabulary's (numba reads them as constants).
+from isp_twin.vocabulary import SIDE_L, SIDE_R
+
 __all__ = [
     "SCALAR_LAW",
     "SIDE_R",
@@ -48,9 +51,6 @@ __all__ = [
 
 #: The scalar form, one function per step of Eq. 5 (compiled by numba as they are).
 SCALAR_LAW = ("side_of", "regime_of", "stribeck", "sliding", "stiction")
-
-#: Sides of the angle (Fig. 3): R for angle > 0, L for angle <= 0.
-SIDE_R, SIDE_L = 0, 1
 
 # ------------------------------------------------------------------ scalar form
 # Plain floats and the math module only: numba compiles these unchanged, and

@@ -43,9 +43,11 @@ angle 0, so even resolver quantization matters: one LSB (0.0055 deg) at
 3 deg/s moves the crossing by two samples, and the L and R dynamics differ so
 much that the rate error then lasts tens of samples. The side is therefore
 taken from the angle fused with the integrated gyro rate (`fused_angle`);
-``side="raw"`` uses the angle as measured. For a free-spinning motor (angle of
-many turns) the half-plane split has no meaning: `Settings.side` can fix the
-side (``right``/``left``) or wrap the angle to (-pi, pi] (``wrap``).
+``side_source="raw"`` uses the angle as measured. For a free-spinning motor
+(angle of many turns) the half-plane split has no meaning: the side source
+(`Settings.side_source`, CLI ``--side``) can fix the side (``right``/``left``)
+or wrap the angle to (-pi, pi] (``wrap``). A side source says where the side
+is read from; the side itself is `isp_twin.vocabulary`'s `SIDE_R`/`SIDE_L`.
 """
 
 from __future__ import annotations
@@ -67,7 +69,7 @@ from isp_twin.verdict import noise_floor_of
 
 __all__ = [
     "RATE_FIELDS",
-    "SIDES",
+    "SIDE_SOURCES",
     "TIMINGS",
     "Timing",
     "gyro_reading",
@@ -88,8 +90,9 @@ __all__ = [
 
 #: Names of the five rate-form quantities per regime, `RateParams.to_vector` order.
 RATE_FIELDS: tuple[str, ...] = ("pole", "gain", "static", "coulomb", "alpha")
-#: How the half-plane is chosen from the measured angle.
-SIDES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
+#: Side sources: where each step's side (R/L half-plane) is read from (the
+#: fused or raw measured angle, the wrapped angle, or a fixed side).
+SIDE_SOURCES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
 #: Window of the angle/rate fusion [samples] (`fused_angle`).
 FUSION_WINDOW = 201
 
@@ -121,7 +124,7 @@ class Timing:
         return f"gyro rate {kind}, half-plane read at step start + {self.side_shift:g} step"
 
 
-#: Read-out timings tried by `identify` (``side="measured"``); the paper's Eq. 6 first.
+#: Read-out timings tried by `identify` (``side_source="measured"``); the paper's Eq. 6 first.
 TIMINGS: tuple[Timing, ...] = tuple(
     Timing(shift, avg) for avg in (False, True) for shift in (0.0, 0.25, 0.5, 0.75)
 )
@@ -139,7 +142,7 @@ class Settings:
         refine_evaluations: budget of the refinement [Jacobian evaluations].
         min_regime_samples: moving samples below which a regime is not identified.
         rest_rate_deg_s: |rate| at or below this counts as "at rest" [deg/s].
-        side: half-plane selection, one of `SIDES`.
+        side_source: where the side is read from, one of `SIDE_SOURCES`.
         confidence: level of the intervals.
         converged_ratio: the global search runs when the least-squares fit
             from the data's own start ends above this multiple of the rate
@@ -147,7 +150,7 @@ class Settings:
         prior_in_search: also start from the prior's values (by default the
             prior only supplies b, unvisited regimes and held effects).
         timing: the data's read-out timing (`Timing`); None: the one of
-            `TIMINGS` that fits best (``side="measured"``; else Eq. 6's).
+            `TIMINGS` that fits best (``side_source="measured"``; else Eq. 6's).
         integration: how the model integrates a sample
             (`isp_twin.substep_model.Integration`; `EQ6` is the paper's Eq. 6).
     """
@@ -159,7 +162,7 @@ class Settings:
     refine_evaluations: int = 200
     min_regime_samples: int = 50
     rest_rate_deg_s: float = 0.1
-    side: str = "measured"
+    side_source: str = "measured"
     confidence: float = 0.95
     converged_ratio: float = 1.2
     prior_in_search: bool = False
@@ -167,8 +170,10 @@ class Settings:
     integration: Integration = DEFAULT_INTEGRATION
 
     def __post_init__(self):
-        if self.side not in SIDES:
-            raise ParameterError(f"side '{self.side}' unknown; allowed: {', '.join(SIDES)}")
+        if self.side_source not in SIDE_SOURCES:
+            raise ParameterError(
+                f"side source '{self.side_source}' unknown; allowed: {', '.join(SIDE_SOURCES)}"
+            )
         if self.population < 5 or self.generations < 0:
             raise ParameterError("population >= 5 and generations >= 0 required")
 
@@ -246,7 +251,7 @@ def fused_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
     return integral + smooth
 
 
-def side_angle(data: MeasuredData, side: str = "measured", shift: float = 0.0) -> np.ndarray:
+def side_angle(data: MeasuredData, side_source: str = "measured", shift: float = 0.0) -> np.ndarray:
     """The angle [rad] whose sign selects the half-plane of each step (see module doc).
 
     Entry k picks the regime of the step from sample k to k+1. With
@@ -261,31 +266,31 @@ def side_angle(data: MeasuredData, side: str = "measured", shift: float = 0.0) -
     size of the friction change that then decays with the pole (20-30 noise
     sigmas on a 10 ms axis). `identify` picks the shift from the data.
     """
-    if side == "measured":
+    if side_source == "measured":
         y = fused_angle(data)
         if shift == 0.0:
             return y
         k = np.arange(y.size, dtype=float)
         return np.interp(k + shift, k, y)
-    if side == "raw":
+    if side_source == "raw":
         return data.angle
-    if side == "wrap":
+    if side_source == "wrap":
         return np.angle(np.exp(1j * data.angle))
-    if side == "right":
+    if side_source == "right":
         return np.ones_like(data.angle)
-    if side == "left":
+    if side_source == "left":
         return -np.ones_like(data.angle)
-    raise ParameterError(f"side '{side}' unknown; allowed: {', '.join(SIDES)}")
+    raise ParameterError(f"side source '{side_source}' unknown; allowed: {', '.join(SIDE_SOURCES)}")
 
 
 def regime_visits(
-    data: Sequence[MeasuredData], side: str = "measured", rest_rate_deg_s: float = 0.1
+    data: Sequence[MeasuredData], side_source: str = "measured", rest_rate_deg_s: float = 0.1
 ) -> np.ndarray:
     """Moving samples (|rate| above the rest level) per regime, shape (4,)."""
     counts = np.zeros(4, dtype=int)
     for d in data:
         moving = np.abs(d.omega) > rest_rate_deg_s * DEG
-        r = regime_index(side_angle(d, side), d.omega)[moving]
+        r = regime_index(side_angle(d, side_source), d.omega)[moving]
         counts += np.bincount(r, minlength=4)
     return counts
 
@@ -297,7 +302,7 @@ def _omega0(d: MeasuredData, rest: float) -> float:
 def simulate_data(
     rate: RateParams,
     d: MeasuredData,
-    side: str = "measured",
+    side_source: str = "measured",
     rest_rate_deg_s: float = 0.1,
     effects: Sequence[EffectSpec] = (),
     timing: Timing = Timing(),
@@ -317,7 +322,7 @@ def simulate_data(
         d.dt,
         omega0=_omega0(d, rest_rate_deg_s * DEG),
         angle0=float(d.angle[0]),
-        angle_measured=side_angle(d, side, timing.side_shift / integration.substeps),
+        angle_measured=side_angle(d, side_source, timing.side_shift / integration.substeps),
         effects=[make_effect(e, d.dt) for e in effects],
         integration=integration,
         gyro_average=timing.gyro_average,
@@ -340,7 +345,7 @@ def gyro_reading(omega: np.ndarray, average: bool) -> np.ndarray:
 def residuals(
     rate: RateParams,
     data: Sequence[MeasuredData],
-    side: str = "measured",
+    side_source: str = "measured",
     rest_rate_deg_s: float = 0.1,
     effects: Sequence[EffectSpec] = (),
     timing: Timing = Timing(),
@@ -361,7 +366,7 @@ def residuals(
     y = np.zeros((n_runs, n))
     for i, d in enumerate(data):
         u[i, : len(d)] = d.u
-        y[i, : len(d)] = side_angle(d, side, timing.side_shift / integration.substeps)
+        y[i, : len(d)] = side_angle(d, side_source, timing.side_shift / integration.substeps)
         y[i, len(d) :] = y[i, len(d) - 1]
     rest = rest_rate_deg_s * DEG
     w0 = np.array([_omega0(d, rest) for d in data])
@@ -386,14 +391,14 @@ def residuals(
 def rmse(
     rate: RateParams,
     data: Sequence[MeasuredData],
-    side: str = "measured",
+    side_source: str = "measured",
     rest_rate_deg_s: float = 0.1,
     effects: Sequence[EffectSpec] = (),
     timing: Timing = Timing(),
     integration: Integration = DEFAULT_INTEGRATION,
 ) -> float | np.ndarray:
     """Eq. 9: RMS rate error over all sets at once [rad/s]."""
-    e = residuals(rate, data, side, rest_rate_deg_s, effects, timing, integration)
+    e = residuals(rate, data, side_source, rest_rate_deg_s, effects, timing, integration)
     return np.sqrt(np.mean(e**2, axis=-1))
 
 
@@ -403,7 +408,7 @@ def rmse(
 def equation_error_estimate(
     data: Sequence[MeasuredData],
     prior: RateParams,
-    side: str = "measured",
+    side_source: str = "measured",
     rest_rate_deg_s: float = 0.1,
     min_samples: int = 50,
     effects: Sequence[EffectSpec] = (),
@@ -431,7 +436,7 @@ def equation_error_estimate(
     speeds = []
     for d in data:
         w0, w1 = d.omega[:-1], d.omega[1:]
-        y = side_angle(d, side)[:-1]
+        y = side_angle(d, side_source)[:-1]
         u0, more = _effect_drive(d, y, effects)
         w1 = w1 - more
         moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
@@ -709,7 +714,7 @@ def identify(
     s = settings
     prior_rate = prior.rate_params()
     effects = tuple(prior.effects)
-    visits = regime_visits(data, s.side, s.rest_rate_deg_s)
+    visits = regime_visits(data, s.side_source, s.rest_rate_deg_s)
     visited = visits >= s.min_regime_samples
     if not visited.any():
         raise DataError(
@@ -718,7 +723,7 @@ def identify(
         )
     free = np.repeat(visited, 5)
     x_init = equation_error_estimate(
-        data, prior_rate, s.side, s.rest_rate_deg_s, s.min_regime_samples, effects
+        data, prior_rate, s.side_source, s.rest_rate_deg_s, s.min_regime_samples, effects
     )
     base = prior_rate.to_vector()
     base[free] = x_init.to_vector()[free]
@@ -737,7 +742,7 @@ def identify(
         nonlocal evaluations
         evaluations += xt.shape[1]
         return np.atleast_1d(
-            rmse(full(xt.T), data, s.side, s.rest_rate_deg_s, effects, timing, s.integration)
+            rmse(full(xt.T), data, s.side_source, s.rest_rate_deg_s, effects, timing, s.integration)
         )
 
     initial_cost = float(batch_cost(x0[:, None])[0])
@@ -760,7 +765,7 @@ def identify(
         h = np.full(z.size, 1e-6)
         pts = np.vstack([z, z + np.diag(h)])
         evaluations += pts.shape[0]
-        e = residuals(full(_from_z(pts)), data, s.side, rest, effects, timing, s.integration)
+        e = residuals(full(_from_z(pts)), data, s.side_source, rest, effects, timing, s.integration)
         cache.update(z=z.copy(), e=e[0], j=((e[1:] - e[0]) / h[:, None]).T)
         if progress is not None:
             progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
@@ -807,7 +812,7 @@ def identify(
     starts = [_to_z(x0)]
     if s.prior_in_search:
         starts.append(_to_z(prior_rate.to_vector()[free]))
-    choose_timing = s.timing is None and s.side == "measured"
+    choose_timing = s.timing is None and s.side_source == "measured"
 
     def best_timing(z: np.ndarray, options=TIMINGS) -> tuple[Timing, float]:
         """The read-out timing of `options` with the lowest cost at z, and that cost."""
@@ -891,13 +896,13 @@ def identify(
     def _x_jacobian(xf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         h = 1e-6 * np.maximum(np.abs(xf), 1e-9)
         pts = np.vstack([xf, xf + np.diag(h)])
-        e = residuals(full(pts), data, s.side, rest, effects, timing, s.integration)
+        e = residuals(full(pts), data, s.side_source, rest, effects, timing, s.integration)
         return e[0], ((e[1:] - e[0]) / h[:, None]).T
 
     b = np.array([r.b for r in prior.regimes])
     x_best, moved = _robust_to_storage(
         x_best,
-        lambda xs: rmse(full(xs), data, s.side, rest, effects, timing, s.integration),
+        lambda xs: rmse(full(xs), data, s.side_source, rest, effects, timing, s.integration),
         free,
         b,
     )
@@ -917,7 +922,8 @@ def identify(
     ident[free] = sensitive & (ci_floor_f < _MAX_RELATIVE_CI * np.abs(x_best))
     ci[free] = np.where(ident[free], ci_f, np.nan)
     rmse_train = {
-        d.name: float(rmse(rate, [d], s.side, rest, effects, timing, s.integration)) for d in data
+        d.name: float(rmse(rate, [d], s.side_source, rest, effects, timing, s.integration))
+        for d in data
     }
     return IdentificationResult(
         rate=rate,

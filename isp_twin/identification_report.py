@@ -20,9 +20,10 @@ from isp_twin.identification import (
     simulate_data,
 )
 from isp_twin.measured import MeasuredData
-from isp_twin.parameters import PAPER_FIELDS, REGIMES, AxisParams
+from isp_twin.parameters import PAPER_FIELDS, AxisParams
 from isp_twin.units import DEG
 from isp_twin.verdict import FitVerdict, fit_verdict, noise_floor_of
+from isp_twin.vocabulary import REGIMES
 
 __all__ = ["rmse_table", "result_json", "write_report", "PAPER_TO_RATE", "identification_verdict"]
 
@@ -45,7 +46,7 @@ def rmse_table(result: IdentificationResult, data: Sequence[MeasuredData]) -> di
             rmse(
                 result.rate,
                 [d],
-                s.side,
+                s.side_source,
                 s.rest_rate_deg_s,
                 result.effects,
                 result.timing,
@@ -212,7 +213,13 @@ def _plot(result: IdentificationResult, d: MeasuredData, path: Path, title: str)
 
     s = result.settings
     model = simulate_data(
-        result.rate, d, s.side, s.rest_rate_deg_s, result.effects, result.timing, result.integration
+        result.rate,
+        d,
+        s.side_source,
+        s.rest_rate_deg_s,
+        result.effects,
+        result.timing,
+        result.integration,
     ).omega
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(8, 5.5))
     ax1.plot(d.t, d.omega / DEG, lw=0.8, label="measured")
@@ -258,7 +265,7 @@ def write_report(
         f"(equation-error start {result.initial_cost / DEG:.4g} deg/s).",
         f"Read-out timing: {result.timing.describe()}. Model: Eq. 6 parameters "
         f"(per sample), integrated as {result.integration.describe()}.",
-        f"Half-plane from: `{result.settings.side}` angle. Residual lag-1 correlation "
+        f"Half-plane from: `{result.settings.side_source}` angle. Residual lag-1 correlation "
         f"{result.rho:.3f} (intervals inflated by (1+rho)/(1-rho) when positive).",
         "Extra effects of the prior, held fixed in the fit and in every simulation here: "
         + (", ".join(e.name for e in result.effects) or "none")

@@ -34,6 +34,7 @@ import numpy as np
 
 from isp_twin.signals import signal_key
 from isp_twin.units import DEG
+from isp_twin.vocabulary import INNER_AXES
 
 __all__ = [
     "MIN_CARRIER_RATE",
@@ -72,7 +73,7 @@ def run_metrics(
     t: np.ndarray,
     signals: Mapping[str, np.ndarray],
     skip_s: float,
-    axes: Sequence[str] = ("inner_az", "inner_el"),
+    axes: Sequence[str] = INNER_AXES,
 ) -> dict[str, dict[str, float | None]]:
     """Metrics of every inner axis of a run, over ``t >= skip_s``.
 

@@ -15,8 +15,10 @@ import numpy as np
 from isp_twin.axis_model import simulate
 from isp_twin.effects import make_effect
 from isp_twin.errors import SimulationDiverged
+from isp_twin.friction import side_of
 from isp_twin.parameters import ParameterSet
 from isp_twin.units import DEG
+from isp_twin.vocabulary import DIRECTIONS, GIMBAL_AXES, SIDE_L, SIDE_R, SIDES
 
 __all__ = [
     "PAPER_FIG2",
@@ -62,11 +64,11 @@ class OpenLoopFigures:
     """Fig. 2 figures of a run.
 
     Attributes:
-        peak_deg_s: (side, direction) -> peak rate [deg/s] while in that regime
-            ("R+", "R-", "L+", "L-"); NaN where never visited.
+        peak_deg_s: regime name (`REGIMES`) -> peak rate [deg/s] while in
+            that regime; NaN where never visited.
         peak_positive_deg_s / peak_negative_deg_s: overall peaks [deg/s].
-        dead_zones_ms: side ("R": angle > 0, "L": angle <= 0) -> lengths [ms]
-            of each dead zone that starts on that side.
+        dead_zones_ms: side name (`SIDES`: "R" angle > 0, "L" angle <= 0)
+            -> lengths [ms] of each dead zone that starts on that side.
     """
 
     peak_deg_s: dict[str, float]
@@ -74,8 +76,9 @@ class OpenLoopFigures:
     peak_negative_deg_s: float
     dead_zones_ms: dict[str, list[float]]
 
-    def mean_dead_zone_ms(self, side: str) -> float:
-        zones = self.dead_zones_ms[side]
+    def mean_dead_zone_ms(self, side: int) -> float:
+        """Mean dead zone [ms] on `side` (`SIDE_R` or `SIDE_L`); NaN if none."""
+        zones = self.dead_zones_ms[SIDES[side]]
         return float(np.mean(zones)) if zones else float("nan")
 
     def as_dict(self) -> dict:
@@ -84,7 +87,7 @@ class OpenLoopFigures:
             "peak_positive_deg_s": self.peak_positive_deg_s,
             "peak_negative_deg_s": self.peak_negative_deg_s,
             "dead_zones_ms": self.dead_zones_ms,
-            "mean_dead_zone_ms": {s: self.mean_dead_zone_ms(s) for s in ("R", "L")},
+            "mean_dead_zone_ms": {SIDES[s]: self.mean_dead_zone_ms(s) for s in (SIDE_R, SIDE_L)},
             "paper": PAPER_FIG2,
         }
 
@@ -131,14 +134,14 @@ def simulate_open_loop(
         _check_divergence(t, u, r.omega, axis)
         return OpenLoopResponse(t, u, r.omega, r.angle, axis, engine)
 
-    from isp_twin.twin import GIMBALS, Twin
+    from isp_twin.twin import Twin
 
     twin = Twin(params)
     twin.reset({axis: initial_angle_rad})
-    i = GIMBALS.index(axis)
+    i = GIMBAL_AXES.index(axis)
     omega = np.empty(n)
     angle = np.empty(n)
-    command = np.zeros(len(GIMBALS))
+    command = np.zeros(len(GIMBAL_AXES))
     state = twin.state()
     omega[0], angle[0] = state.rate[i], state.angle[i]
     for k in range(1, n):
@@ -195,22 +198,20 @@ def analyse_open_loop(
     keep = t >= t[0] + skip_s
     t, omega, angle = t[keep], omega[keep], angle[keep]
     w_deg = omega / DEG
-    right = angle > 0
+    right = angle > 0  # `side_of` on every sample
     peaks = {}
-    for name, side, sign in (
-        ("R+", right, 1),
-        ("R-", right, -1),
-        ("L+", ~right, 1),
-        ("L-", ~right, -1),
-    ):
-        sel = side & (np.sign(omega) == sign)
-        peaks[name] = float(sign * np.max(sign * w_deg[sel])) if sel.any() else float("nan")
+    # Regimes in `REGIMES` order; a sample at rest (sign 0) belongs to none.
+    for side, on_side in ((SIDE_R, right), (SIDE_L, ~right)):
+        for direction, sign in zip(DIRECTIONS, (1, -1)):
+            sel = on_side & (np.sign(omega) == sign)
+            peak = float(sign * np.max(sign * w_deg[sel])) if sel.any() else float("nan")
+            peaks[SIDES[side] + direction] = peak
     dt = float(np.median(np.diff(t)))
-    zones: dict[str, list[float]] = {"R": [], "L": []}
+    zones: dict[str, list[float]] = {name: [] for name in SIDES}
     for start, stop in _runs(np.abs(omega) <= REST_RATE, int(round(MERGE_GAP_S / dt))):
         if start == 0 or stop == len(t):
             continue
-        zones["R" if angle[start] > 0 else "L"].append(float((stop - start) * dt * 1e3))
+        zones[SIDES[side_of(angle[start])]].append(float((stop - start) * dt * 1e3))
     return OpenLoopFigures(
         peak_deg_s=peaks,
         peak_positive_deg_s=float(w_deg.max()),

@@ -35,11 +35,11 @@ import numpy as np
 from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import ParameterError, nearest
 from isp_twin.units import DEG
+from isp_twin.vocabulary import GIMBAL_AXES, REGIMES
 
 __all__ = [
     "REGIMES",
     "PAPER_FIELDS",
-    "AXES",
     "RegimeParams",
     "EffectSpec",
     "AxisParams",
@@ -49,13 +49,8 @@ __all__ = [
     "save_parameters",
 ]
 
-#: Regime names in the order of the paper's parameter vector X (Eq. 8):
-#: R = right half-plane (angle > 0), L = left (angle <= 0); +/- = direction.
-REGIMES: tuple[str, ...] = ("R+", "R-", "L+", "L-")
 #: The six per-regime parameters, in Eq. 8 order.
 PAPER_FIELDS: tuple[str, ...] = ("a", "b", "Ke", "Ts", "Tc", "alpha")
-#: Gimbal axes, named after the hardware.
-AXES: tuple[str, ...] = ("inner_az", "inner_el", "outer_az", "outer_el")
 
 UNITS: dict[str, str] = {
     "a": "1 (pole per sample)",
@@ -126,7 +121,7 @@ class ParameterSet:
 
     Attributes:
         name: short name of the set.
-        axes: axis name -> `AxisParams` (the keys are a subset of `AXES`).
+        axes: axis name -> `AxisParams` (the keys are a subset of `GIMBAL_AXES`).
         sample_time_s: the sample period T the per-sample parameters refer to [s].
         path: the file it came from (None when built in code).
         description: free text.
@@ -339,7 +334,7 @@ def load_parameters(path: str | Path) -> ParameterSet:
     if dt <= 0:
         raise ParameterError(f"{path}: sample_time_s: must be positive, got {dt}")
     axes_raw = raw["axes"]
-    _check_keys(axes_raw, AXES, path, ["axes"])
+    _check_keys(axes_raw, GIMBAL_AXES, path, ["axes"])
     if not axes_raw:
         raise ParameterError(f"{path}: axes: at least one axis is needed")
     axes = {name: _parse_axis(axes_raw[name], path, ["axes", name]) for name in axes_raw}

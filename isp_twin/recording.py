@@ -49,6 +49,7 @@ from isp_twin.errors import DataError, ResourceNotFound
 from isp_twin.outputs import after_commit
 from isp_twin.results import RunResult
 from isp_twin.units import rad_to_deg
+from isp_twin.vocabulary import INNER_AXES, JOINT_CHAIN
 
 __all__ = [
     "JOINTS",
@@ -71,20 +72,11 @@ _SPAWN_PORT = 9876
 #: How long to wait for a viewer to take the data before giving up [s].
 _VIEWER_TIMEOUT_S = 10.0
 
-#: Axes that get a column of views each (the paper's isolated axes).
-INNER_AXES: tuple[str, ...] = ("inner_az", "inner_el")
+# The inner axes (the paper's isolated axes) get a column of views each.
 
-#: The seven joints, outermost first, each nested in the previous one, with
-#: its rotation axis in the parent frame (hardware naming, see STYLE.md).
-JOINTS: tuple[tuple[str, str], ...] = (
-    ("table_yaw", "z"),
-    ("table_pitch", "y"),
-    ("table_roll", "x"),
-    ("outer_az", "z"),
-    ("outer_el", "y"),
-    ("inner_el", "y"),
-    ("inner_az", "z"),
-)
+#: The seven joints of `JOINT_CHAIN` (outermost first, each nested in the
+#: previous one), each with its rotation axis in the parent frame (the MJCF model's).
+JOINTS: tuple[tuple[str, str], ...] = tuple(zip(JOINT_CHAIN, ("z", "y", "x", "z", "y", "y", "z")))
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 
 

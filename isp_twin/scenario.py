@@ -28,12 +28,10 @@ from typing import Any, Literal
 
 from isp_twin.errors import ResourceNotFound, ScenarioError, nearest
 from isp_twin.resources import default_parameters_path, resource_root
+from isp_twin.vocabulary import GIMBAL_AXES, INNER_AXES, OUTER_AXES, TABLE_JOINTS
 
 __all__ = [
     "CONTROL_DT",
-    "INNER_AXES",
-    "OUTER_AXES",
-    "TABLE_AXES",
     "Motion",
     "Turntable",
     "PIGains",
@@ -61,9 +59,6 @@ __all__ = [
 #: The paper's sample period T = 1 ms (Sect. 2.1): controller and twin step.
 CONTROL_DT = 1e-3
 NYQUIST_HZ = 0.5 / CONTROL_DT
-INNER_AXES = ("inner_az", "inner_el")
-OUTER_AXES = ("outer_az", "outer_el")
-TABLE_AXES = ("table_yaw", "table_pitch", "table_roll")
 
 
 def _f(default: Any, doc: str, **limits: Any) -> Any:
@@ -117,7 +112,7 @@ class Turntable:
     table_roll: Motion = _sub(Motion, "roll")
 
     def motions(self) -> dict[str, Motion]:
-        return {a: getattr(self, a) for a in TABLE_AXES}
+        return {a: getattr(self, a) for a in TABLE_JOINTS}
 
 
 @dataclass(frozen=True)
@@ -291,9 +286,8 @@ class OpenLoopCommand:
 class OpenLoop:
     """The open-loop experiment (kind: open_loop): one gimbal driven, base at rest."""
 
-    axis: Literal["inner_az", "inner_el", "outer_az", "outer_el"] = _f(
-        "inner_az", "the driven gimbal"
-    )
+    # Literal of a tuple: the choices are the vocabulary's (typing expands it).
+    axis: Literal[GIMBAL_AXES] = _f("inner_az", "the driven gimbal")
     command: OpenLoopCommand = _sub(OpenLoopCommand, "the drive signal")
     initial_angle_deg: float = _f(0.0, "gimbal angle at t = 0 [deg]", min=-4.0, max=4.0)
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from isp_twin.vocabulary import GIMBAL_AXES, INNER_AXES, OUTER_AXES, TABLE_JOINTS
+
 __all__ = [
     "Signal",
     "INNER_SIGNALS",
@@ -35,7 +37,7 @@ class Signal:
     doc: str
 
 
-#: Per inner axis (inner_az, inner_el), in buffer order.
+#: Per inner axis (`INNER_AXES`), in buffer order.
 INNER_SIGNALS: tuple[Signal, ...] = (
     Signal("omega_carrier", "rad/s", "carrier rate on the gimbal axis (omega of Eq. 10)"),
     Signal("omega_inertial", "rad/s", "true inertial rate omega_1"),
@@ -46,7 +48,7 @@ INNER_SIGNALS: tuple[Signal, ...] = (
     Signal("nfc", "digits", "NFC feed-forward u_c3 (Eq. 13)"),
     Signal("regime", "index", "friction regime 0 R+, 1 R-, 2 L+, 3 L-"),
 )
-#: Per outer axis (outer_az, outer_el), in buffer order.
+#: Per outer axis (`OUTER_AXES`), in buffer order.
 OUTER_SIGNALS: tuple[Signal, ...] = (
     Signal("follow_error", "rad", "true follow error (inner angle minus its centre)"),
     Signal("command", "digits", "follower command"),
@@ -111,15 +113,7 @@ class SignalTable:
 
 #: The closed loop's layout (joint angles: turntable, then the gimbals in the twin's order).
 CLOSED_LOOP_SIGNALS = SignalTable(
-    inner_axes=("inner_az", "inner_el"),
-    outer_axes=("outer_az", "outer_el"),
-    joints=(
-        "table_yaw",
-        "table_pitch",
-        "table_roll",
-        "inner_az",
-        "inner_el",
-        "outer_az",
-        "outer_el",
-    ),
+    inner_axes=INNER_AXES,
+    outer_axes=OUTER_AXES,
+    joints=TABLE_JOINTS + GIMBAL_AXES,
 )

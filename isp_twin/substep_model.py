@@ -58,6 +58,7 @@ from isp_twin.effects import Effect
 from isp_twin.errors import ParameterError
 from isp_twin.friction_compiled import law_probe_cases, python_law
 from isp_twin.parameters import RateParams
+from isp_twin.vocabulary import check_side
 
 __all__ = ["Integration", "EQ6", "DEFAULT_INTEGRATION", "simulate_substeps"]
 
@@ -138,7 +139,7 @@ def _advance(
     and the effects' factor in column 5 of a (S, 4, 6) table (`_substep_table`);
     u, extra: (S, N) per-sample command
     and extra drive [rate form per sample]; side_y: (S, N) angle choosing the
-    half-plane (used when use_side); fixed_side: 0 none, 1 R, -1 L.
+    half-plane (used when use_side); fixed_side: -1 none, else the side index.
     """
     n_rows = u.shape[0]
     h = dt / m
@@ -151,8 +152,8 @@ def _advance(
             acc = 0.5 * w
             idx = 0
             for j in range(m):
-                if fixed_side != 0:
-                    side = law.side_of(fixed_side)
+                if fixed_side >= 0:
+                    side = fixed_side
                 elif use_side:
                     y0 = side_y[i, k - 1]
                     if j == 0:
@@ -296,7 +297,7 @@ def simulate_substeps(
     angle0: float | np.ndarray = 0.0,
     angle_measured: np.ndarray | None = None,
     effects: Sequence[Effect] = (),
-    side: float | None = None,
+    side: int | None = None,
     integration: Integration = DEFAULT_INTEGRATION,
     gyro_average: bool = False,
 ) -> AxisResponse:
@@ -312,7 +313,7 @@ def simulate_substeps(
             (teacher forcing); None: the model's own angle.
         effects: extra effects (reset here, evaluated per sample), parameters
             floats or arrays (P,).
-        side: fix the half-plane (> 0: R, <= 0: L) whatever the angle.
+        side: fix the half-plane (`SIDE_R` or `SIDE_L`) whatever the angle.
         integration: sub-steps and options (`Integration`).
         gyro_average: the reading is the rate averaged over the sample.
 
@@ -345,7 +346,7 @@ def simulate_substeps(
         )
     else:
         side_y = np.zeros((1, 1))
-    fixed = 0 if side is None else (1 if float(side) > 0.0 else -1)
+    fixed = -1 if check_side(side) is None else side
     w = np.broadcast_to(np.asarray(omega0, dtype=float), (n_rows,)).copy()
     y = np.broadcast_to(np.asarray(angle0, dtype=float), (n_rows,)).copy()
     point = np.empty((n_rows, n))

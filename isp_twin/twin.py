@@ -45,8 +45,10 @@ from isp_twin.errors import (
     nearest,
 )
 from isp_twin.friction import regime_of, side_of, stribeck
-from isp_twin.parameters import AXES, ParameterSet, RateParams
+from isp_twin.parameters import ParameterSet, RateParams
 from isp_twin.resources import model_path as default_model_path
+from isp_twin.vocabulary import GIMBAL_AXES as GIMBALS
+from isp_twin.vocabulary import INNER_AXES, TABLE_JOINTS
 
 __all__ = [
     "GIMBALS",
@@ -61,10 +63,9 @@ __all__ = [
     "mujoco_library",
 ]
 
-#: Gimbal order of every (4,) array of the twin (commands and state).
-GIMBALS: tuple[str, ...] = AXES
-#: Turntable joints, order of `table_target`, `table_angle`, `table_rate`.
-TABLE_JOINTS: tuple[str, ...] = ("table_yaw", "table_pitch", "table_roll")
+# GIMBALS (the vocabulary's GIMBAL_AXES) orders every (4,) array of the twin
+# (commands and state); TABLE_JOINTS orders `table_target`, `table_angle`,
+# `table_rate`.
 #: |rate| at or below this counts as rest [rad/s] (5.7e-4 deg/s). Noslip holds
 #: a stuck joint to < 1e-7 rad/s, but a stop leaves up to ~1e-4 of the
 #: previous step's rate (< 3e-6 rad/s) with either sign; friction cannot
@@ -345,7 +346,7 @@ class Twin:
         if sid < 0:
             raise ParameterError(f"{path}: no site 'gyro_table'")
         self._table_site = sid
-        self._inner_jids = np.array([self._jid["inner_az"], self._jid["inner_el"]])
+        self._inner_jids = np.array([self._jid[n] for n in INNER_AXES])
         self._ranges = {n: tuple(m.jnt_range[self._jid[n]]) for n in TABLE_JOINTS + GIMBALS}
 
         # Effective inertia about each gimbal axis at qpos0 (dof_M0: the

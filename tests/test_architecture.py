@@ -6,7 +6,12 @@
 * `isp_twin.control` (the controller blocks) imports neither the twin nor the
   scenario nor the closed loop: it is plain math, testable alone;
 * `isp_twin.friction` (Eq. 5, compiled by numba as written) uses only the
-  math module and numpy.
+  math module, numpy and the vocabulary's side indices;
+* the names of the gimbal axes, turntable joints and friction regimes are
+  listed once, in `isp_twin.vocabulary`: a tuple, list or set literal holding
+  two or more of them anywhere else in the package is a restatement (the
+  independent reference simulator, `isp_twin.reference`, writes the regime
+  order again on purpose and a test compares it).
 
 An import counts wherever it is written (module top, inside a function, a
 relative import, ``from isp_twin import twin``, ``importlib.import_module``).
@@ -18,6 +23,8 @@ import ast
 from pathlib import Path
 
 import pytest
+
+from isp_twin.vocabulary import GIMBAL_AXES, REGIMES, TABLE_JOINTS
 
 PACKAGE = Path(__file__).resolve().parents[1] / "isp_twin"
 
@@ -36,8 +43,12 @@ FORBIDDEN = {
         "mujoco",
     ),
 }
-#: File -> the only modules it may import.
-ONLY = {"isp_twin/friction.py": ("__future__", "math", "numpy")}
+#: File -> the only modules it may import (the vocabulary: names only, so
+#: that everything, Eq. 5 included, can import it).
+ONLY = {
+    "isp_twin/friction.py": ("__future__", "math", "numpy", "isp_twin.vocabulary"),
+    "isp_twin/vocabulary.py": ("__future__", "isp_twin.errors"),
+}
 
 
 def module_name(rel: str) -> str:
@@ -157,3 +168,67 @@ def test_a_planted_violation_is_caught(rel, source):
 )
 def test_allowed_imports_pass(rel, source):
     assert violations(rel, source) == []
+
+
+#: The names only `isp_twin.vocabulary` may list.
+VOCABULARY = frozenset(GIMBAL_AXES + TABLE_JOINTS + REGIMES)
+#: Where a list of them is allowed: their home, and the deliberately independent simulator.
+VOCABULARY_HOMES = ("isp_twin/vocabulary.py", "isp_twin/reference/")
+
+
+def restated_names(rel: str, source: str) -> list[str]:
+    """Tuple/list/set literals holding two or more vocabulary names, nested
+    literals included ("file:line: names"; the outermost literal only)."""
+    if rel.startswith(VOCABULARY_HOMES):
+        return []
+    found = {}
+    for node in ast.walk(ast.parse(source, filename=rel)):
+        if isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+            names = [
+                e.value
+                for e in ast.walk(node)
+                if isinstance(e, ast.Constant)
+                and isinstance(e.value, str)
+                and e.value in VOCABULARY
+            ]
+            if len(names) >= 2:
+                # ast.walk is breadth first: the outermost literal of a line comes first.
+                found.setdefault(
+                    node.lineno,
+                    f"{rel}:{node.lineno}: lists {', '.join(names)} (import them from isp_twin.vocabulary)",
+                )
+    return list(found.values())
+
+
+def test_axis_joint_and_regime_names_are_listed_only_in_the_vocabulary():
+    root = PACKAGE.parent
+    found = []
+    for path in package_files():
+        found += restated_names(path.relative_to(root).as_posix(), path.read_text())
+    assert not found, "\n".join(found)
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        'AXES: tuple[str, ...] = ("inner_az", "inner_el", "outer_az", "outer_el")\n',
+        'JOINTS = (("table_yaw", "z"), ("table_pitch", "y"))\n',
+        'def f(axes=["inner_az", "inner_el"]):\n    pass\n',
+        'ok = axis in {"R+", "L-"}\n',
+    ],
+)
+def test_a_planted_list_of_names_is_caught(source):
+    assert restated_names("isp_twin/metrics.py", source)
+
+
+@pytest.mark.parametrize(
+    "rel, source",
+    [
+        ("isp_twin/metrics.py", 'def f(axis="inner_az"):\n    return axis == "inner_el"\n'),
+        ("isp_twin/metrics.py", 'PAIRS = (("inner_az", 1.0),)\n'),  # one name per literal
+        ("isp_twin/vocabulary.py", 'INNER_AXES = ("inner_az", "inner_el")\n'),
+        ("isp_twin/reference/axis.py", 'REGIME_NAMES = ("R+", "R-", "L+", "L-")\n'),
+    ],
+)
+def test_single_names_and_the_vocabulary_itself_pass(rel, source):
+    assert restated_names(rel, source) == []

@@ -16,6 +16,7 @@ from isp_twin.measured import MeasuredData
 from isp_twin.parameters import EffectSpec, load_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.substep_model import EQ6
+from isp_twin.vocabulary import SIDE_R
 
 DT = 1e-3
 # The synthetic runs are made by Eq. 6 itself (`axis_model`): the model they
@@ -149,7 +150,7 @@ def test_a_fixed_side_picks_the_regimes_as_a_positive_angle_would(rate):
     rng = np.random.default_rng(6)
     u = excitation(rng, 800, DT)
     angle = np.linspace(-0.3, 0.3, 800)
-    fixed = simulate(rate, u, DT, angle_measured=angle, side=1.0)
+    fixed = simulate(rate, u, DT, angle_measured=angle, side=SIDE_R)
     positive = simulate(rate, u, DT, angle_measured=np.abs(angle) + 1.0)
     np.testing.assert_array_equal(fixed.omega, positive.omega)
     assert set(np.unique(fixed.regime[1:])) <= {0, 1}

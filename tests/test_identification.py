@@ -266,7 +266,7 @@ def test_real_free_spinning_motor_with_the_side_fixed(tmp_path):
         a=1 - 7.03e-5 * 1e-3 / 1.2e-4, b=1e-3 / 1.2e-4 / DEG, Ke=1.0, Ts=0.025, Tc=0.02, alpha=0.01
     )
     prior = AxisParams(regimes=(base,) * 4)
-    res = identify([d], prior, Settings(side="right", generations=0, refine_evaluations=30))
+    res = identify([d], prior, Settings(side_source="right", generations=0, refine_evaluations=30))
     assert res.regime_identified == (True, False, False, False)
     assert res.cost < rmse(prior.rate_params(), [d], "right")
     assert res.identifiable[5:].sum() == 0

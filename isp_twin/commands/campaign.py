@@ -11,6 +11,7 @@ from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.progress import working
 from isp_twin.errors import ScenarioError
 from isp_twin.outputs import check_outputs, is_stdout, transaction
+from isp_twin.vocabulary import INNER_AXES
 
 __all__ = ["add_parser", "execute", "STATS_UNITS"]
 
@@ -46,7 +47,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="first seed (default: the scenario's)")
     p.add_argument(
         "--axis",
-        choices=("inner_az", "inner_el"),
+        choices=INNER_AXES,
         default="inner_az",
         help="inner axis the statistics are taken on",
     )

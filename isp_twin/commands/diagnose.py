@@ -21,8 +21,9 @@ from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
 from isp_twin.measured import check_sample_period, load_measured, unique_names
 from isp_twin.outputs import check_outputs, is_stdout, transaction
-from isp_twin.parameters import AXES, load_parameters, save_parameters
+from isp_twin.parameters import load_parameters, save_parameters
 from isp_twin.units import DEG
+from isp_twin.vocabulary import GIMBAL_AXES
 
 __all__ = ["add_parser", "execute"]
 
@@ -44,7 +45,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--params", required=True, type=Path, help="current parameter file (YAML)")
     p.add_argument("--holdout", nargs="+", default=[], metavar="DATA", help="held-out runs")
     p.add_argument("--out", type=Path, default=None, help="updated parameter file (YAML)")
-    p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
+    p.add_argument(
+        "--axis", default="inner_az", choices=GIMBAL_AXES, help="the axis the data belong to"
+    )
     add_data_options(p)
     p.add_argument(
         "--candidates",

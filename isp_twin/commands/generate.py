@@ -15,8 +15,9 @@ from isp_twin.experiment import (
 )
 from isp_twin.measured import save_measured
 from isp_twin.outputs import check_folder, check_outputs, transaction
-from isp_twin.parameters import AXES, load_parameters
+from isp_twin.parameters import load_parameters
 from isp_twin.resources import default_parameters_path
+from isp_twin.vocabulary import GIMBAL_AXES
 
 
 def add_parser(sub) -> None:
@@ -34,7 +35,7 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--out", required=True, type=Path, help="output folder")
     p.add_argument("--params", type=Path, default=None, help="true parameters (default: Table 2)")
-    p.add_argument("--axis", default="inner_az", choices=AXES)
+    p.add_argument("--axis", default="inner_az", choices=GIMBAL_AXES)
     p.add_argument("--set", default="paper", choices=("paper", "eq7"), dest="which")
     p.add_argument("--amplitude", type=float, default=EQ7.amplitude_digits, help="[digits]")
     p.add_argument("--freq", type=float, default=EQ7.freq_hz, help="[Hz]")

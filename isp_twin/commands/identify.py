@@ -17,13 +17,14 @@ from isp_twin.commands.data_options import (
     mapping_from_args,
 )
 from isp_twin.errors import ParameterError
-from isp_twin.identification import SIDES, Settings, identify, to_axis_params
+from isp_twin.identification import SIDE_SOURCES, Settings, identify, to_axis_params
 from isp_twin.identification_report import identification_verdict, result_json, write_report
 from isp_twin.measured import check_sample_period, load_measured, unique_names
 from isp_twin.outputs import check_outputs, transaction
-from isp_twin.parameters import AXES, load_parameters, save_parameters
+from isp_twin.parameters import load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG
+from isp_twin.vocabulary import GIMBAL_AXES
 
 
 def add_parser(sub) -> None:
@@ -49,12 +50,15 @@ def add_parser(sub) -> None:
         default=None,
         help="prior parameter file (default: the paper's Table 2)",
     )
-    p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
+    p.add_argument(
+        "--axis", default="inner_az", choices=GIMBAL_AXES, help="the axis the data belong to"
+    )
     add_data_options(p)
     p.add_argument(
         "--side",
+        dest="side_source",
         default="measured",
-        choices=SIDES,
+        choices=SIDE_SOURCES,
         help="half-plane source: measured (angle fused with rate), raw, wrap, right, left",
     )
     p.add_argument(
@@ -131,7 +135,7 @@ def execute(args) -> int:
         refine_evaluations=args.refine_evaluations,
         min_regime_samples=args.min_regime_samples,
         rest_rate_deg_s=args.rest_rate,
-        side=args.side,
+        side_source=args.side_source,
         prior_in_search=args.prior_in_search,
         integration=integration_from_args(args),
     )

@@ -16,6 +16,7 @@ from isp_twin.parameters import load_parameters
 from isp_twin.resources import find_scenario
 from isp_twin.results import RunResult
 from isp_twin.units import DEG
+from isp_twin.vocabulary import SIDE_L, SIDE_R
 
 __all__ = ["add_parser", "execute", "CLOSED_LOOP_UNITS", "OPEN_LOOP_UNITS"]
 
@@ -199,8 +200,16 @@ def _run_open_loop(scenario, params, params_path, name, seed, engine):
     rows = (
         ("peak positive [deg/s]", figures.peak_positive_deg_s, PAPER_FIG2["peak_positive_deg_s"]),
         ("peak negative [deg/s]", figures.peak_negative_deg_s, PAPER_FIG2["peak_negative_deg_s"]),
-        ("dead zone, Y > 0 [ms]", figures.mean_dead_zone_ms("R"), PAPER_FIG2["dead_zone_right_ms"]),
-        ("dead zone, Y <= 0 [ms]", figures.mean_dead_zone_ms("L"), PAPER_FIG2["dead_zone_left_ms"]),
+        (
+            "dead zone, Y > 0 [ms]",
+            figures.mean_dead_zone_ms(SIDE_R),
+            PAPER_FIG2["dead_zone_right_ms"],
+        ),
+        (
+            "dead zone, Y <= 0 [ms]",
+            figures.mean_dead_zone_ms(SIDE_L),
+            PAPER_FIG2["dead_zone_left_ms"],
+        ),
     )
     for label, ours, paper in rows:
         text = "none" if np.isnan(ours) else f"{ours:10.2f}"

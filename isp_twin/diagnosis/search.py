@@ -42,6 +42,7 @@ from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
 from isp_twin.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.units import DEG
 from isp_twin.verdict import CONVERGED_RATIO, json_safe
+from isp_twin.vocabulary import SIDE_L, SIDE_R
 
 __all__ = ["LIBRARY", "Diagnosis", "RoundResult", "diagnose", "split_in_time"]
 
@@ -391,7 +392,7 @@ def diagnose(
     """
     runs = list(runs)
     holdout = list(holdout)
-    sides = {"measured": None, "raw": None, "right": 1.0, "left": -1.0}
+    sides = {"measured": None, "raw": None, "right": SIDE_R, "left": SIDE_L}
     if side not in sides:
         raise ParameterError(
             f"diagnose: side '{side}'{nearest(side, sides)}; allowed: {', '.join(sides)}"
@@ -426,7 +427,7 @@ def diagnose(
         base_id = identify(
             runs,
             ax,
-            IdSettings(side=side, seed=seed, integration=integration, timing=given_timing),
+            IdSettings(side_source=side, seed=seed, integration=integration, timing=given_timing),
         )
         timing = base_id.timing
     elif side == "measured" and given_timing is None:
@@ -703,7 +704,7 @@ def _refit_globally(raw_runs, ax, fit, train, seed, side, timing, max_iter) -> C
     again = identify(
         raw_runs,
         held_ax,
-        IdSettings(side=side, seed=seed, timing=timing, integration=train.integration),
+        IdSettings(side_source=side, seed=seed, timing=timing, integration=train.integration),
     )
     return fit_candidates(
         train,

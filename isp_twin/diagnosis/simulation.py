@@ -33,7 +33,7 @@ class RunStack:
         mask: True on samples that count (not sample 0, not padding).
         dt: sample period [s].
         side: None to pick the half-plane from the measured angle (the
-            paper's rule), else a fixed side (+1: R, -1: L) for a freely
+            paper's rule), else a fixed side (`SIDE_R`, `SIDE_L`) for a freely
             spinning motor.
         gyro_average: the model's rate is read as a gyro averaging over the
             sample (`isp_twin.identification.Timing`).
@@ -47,7 +47,7 @@ class RunStack:
     angle: np.ndarray
     mask: np.ndarray
     dt: float
-    side: float | None = None
+    side: int | None = None
     gyro_average: bool = False
     integration: Integration = DEFAULT_INTEGRATION
 
@@ -70,7 +70,7 @@ WARMUP = 50
 def stack_runs(
     runs: Sequence,
     warmup: int = WARMUP,
-    side: float | None = None,
+    side: int | None = None,
     gyro_average: bool = False,
     integration: Integration = DEFAULT_INTEGRATION,
 ) -> RunStack:

@@ -57,9 +57,8 @@ import numpy as np
 
 from isp_twin import __version__
 from isp_twin.errors import IspTwinError, ResourceNotFound, ScenarioError, nearest
-from isp_twin.parameters import PAPER_FIELDS, REGIMES
+from isp_twin.parameters import PAPER_FIELDS
 from isp_twin.scenario import (
-    INNER_AXES,
     Scenario,
     check_scenario_value,
     load_scenario,
@@ -67,6 +66,7 @@ from isp_twin.scenario import (
     resolve_parameters,
     scenario_to_raw,
 )
+from isp_twin.vocabulary import INNER_AXES, REGIMES
 
 __all__ = [
     "RunSpec",

@@ -61,7 +61,8 @@ def _parameters(path: str, mtime_ns: int, draw_json: str | None):
     """The plant's and the NFC's parameter sets (cached per worker process and file version)."""
     import json
 
-    from isp_twin.parameters import REGIMES, load_parameters
+    from isp_twin.parameters import load_parameters
+    from isp_twin.vocabulary import REGIMES
 
     nominal = load_parameters(path)
     if draw_json is None:
