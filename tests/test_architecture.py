@@ -232,3 +232,26 @@ def test_a_planted_list_of_names_is_caught(source):
 )
 def test_single_names_and_the_vocabulary_itself_pass(rel, source):
     assert restated_names(rel, source) == []
+
+
+def registry_lookups(rel: str, source: str) -> list[str]:
+    """``EFFECTS[...]`` outside the registry's module ("file:line")."""
+    if rel == "isp_twin/effects/__init__.py":
+        return []
+    return [
+        f"{rel}:{node.lineno}: EFFECTS[...] (use isp_twin.effects.effect_class)"
+        for node in ast.walk(ast.parse(source, filename=rel))
+        if isinstance(node, ast.Subscript)
+        and isinstance(node.value, (ast.Name, ast.Attribute))
+        and getattr(node.value, "id", getattr(node.value, "attr", None)) == "EFFECTS"
+    ]
+
+
+def test_effects_are_looked_up_by_one_function():
+    root = PACKAGE.parent
+    found = []
+    for path in package_files():
+        found += registry_lookups(path.relative_to(root).as_posix(), path.read_text())
+    assert not found, "\n".join(found)
+    assert registry_lookups("isp_twin/diagnosis/search.py", "cls = effects.EFFECTS[name]\n")
+    assert registry_lookups("isp_twin/twin.py", "cls = EFFECTS[spec.name]\n")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from isp_twin.axis_model import simulate
-from isp_twin.effects import EFFECTS, Effect, make_effect
+from isp_twin.effects import EFFECTS, Effect, effect_class, make_effect
 from isp_twin.effects.batched import make_batched
 from isp_twin.errors import ParameterError
 from isp_twin.parameters import EffectSpec, load_parameters
@@ -108,6 +108,45 @@ def test_unknown_or_missing_effect_parameters_are_named():
         make_effect(EffectSpec("coging", {}), DT)
     with pytest.raises(ParameterError, match="missing parameter"):
         make_batched("deadzone", {}, DT)
+
+
+def test_every_lookup_names_an_unknown_effect_and_lists_the_known_ones():
+    known = ", ".join(sorted(EFFECTS))
+    for lookup in (
+        lambda: effect_class("coging"),
+        lambda: make_effect(EffectSpec("coging", {}), DT),
+        lambda: make_batched("coging", {}, DT),
+    ):
+        with pytest.raises(ParameterError) as caught:
+            lookup()
+        message = str(caught.value)
+        assert "'coging'" in message and "did you mean 'cogging'" in message
+        assert message.endswith(f"known: {known}") and "\n" not in message
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        {"amplitude_rad_s2": 1.0, "phase_rad": 0.0},  # period_rad missing
+        {**EXAMPLE["cogging"], "period": 0.1},  # an unknown one
+    ],
+)
+def test_one_parameter_check_serves_the_scalar_and_the_batched_effect(params):
+    messages = []
+    for build in (
+        lambda: make_effect(EffectSpec("cogging", params), DT),
+        lambda: make_batched("cogging", params, DT),
+    ):
+        with pytest.raises(ParameterError) as caught:
+            build()
+        messages.append(str(caught.value))
+    assert messages[0] == messages[1]
+
+
+def test_diagnosis_tests_the_registered_effects_in_report_order():
+    from isp_twin.diagnosis.search import LIBRARY as CANDIDATES
+
+    assert CANDIDATES == LIBRARY == tuple(EFFECTS)
 
 
 def test_cogging_is_periodic_in_angle_with_the_given_period():

@@ -19,8 +19,7 @@ import numpy as np
 from isp_twin.diagnosis.fit import FitResult, FitStatus, lm_steps, solve_many
 from isp_twin.diagnosis.residual import ResidualContext, residual_context
 from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
-from isp_twin.effects import EFFECTS
-from isp_twin.errors import ParameterError, nearest
+from isp_twin.effects import effect_class
 from isp_twin.parameters import EffectSpec
 
 __all__ = [
@@ -94,15 +93,6 @@ def rate_bounds(x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return lower.ravel(), upper.ravel(), scale.ravel()
 
 
-def _effect_class(name: str):
-    try:
-        return EFFECTS[name]
-    except KeyError:
-        raise ParameterError(
-            f"unknown candidate effect '{name}'{nearest(name, EFFECTS)}; known: {', '.join(sorted(EFFECTS))}"
-        ) from None
-
-
 def _effect_scale(name: str, lo: float, hi: float, guess: float) -> float:
     if name.endswith("phase_rad"):
         return max(abs(guess), 0.5)
@@ -156,7 +146,7 @@ def fit_candidates(
     lo_r, hi_r, sc_r = rate_bounds(x_rate)
     fixed = tuple(fixed)
     starts = dict(starts or {})
-    classes = {n: _effect_class(n) for n in names if n != BASELINE}
+    classes = {n: effect_class(n, "candidate effect") for n in names if n != BASELINE}
     need = [n for n in classes if starts.get(n) is None]
     if need:
         if context is None:

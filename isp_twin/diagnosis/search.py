@@ -26,7 +26,7 @@ from isp_twin.diagnosis.selection import Verdict, judge, select
 from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
 from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
-from isp_twin.effects import EFFECTS
+from isp_twin.effects import EFFECTS, effect_class
 from isp_twin.errors import DataError, ParameterError, nearest
 from isp_twin.identification import (
     TIMINGS,
@@ -60,19 +60,8 @@ REOPEN_ITER = 16
 #: Multiples of the winner's strength parameters tried as re-starts (`_reopen_rates`).
 REOPEN_FACTORS = (0.5, 1.0, 1.5, 2.0)
 
-#: The candidate effects, in report order.
-LIBRARY: tuple[str, ...] = (
-    "cogging",
-    "cable_spring",
-    "unbalance",
-    "torque_offset",
-    "input_delay",
-    "deadzone",
-    "saturation",
-    "sensor_bias",
-    "lugre",
-    "resonance",
-)
+#: The candidate effects, in report order: the registry's.
+LIBRARY: tuple[str, ...] = tuple(EFFECTS)
 
 
 @dataclass(frozen=True)
@@ -412,10 +401,7 @@ def diagnose(
         present = {e.name for e in ax.effects}
         candidates = [c for c in LIBRARY if c not in present]
     for c in candidates:
-        if c not in EFFECTS:
-            raise ParameterError(
-                f"unknown candidate effect '{c}'{nearest(c, EFFECTS)}; known: {', '.join(sorted(EFFECTS))}"
-            )
+        effect_class(c, "candidate effect")
     if not holdout and len(runs) == 1:
         runs = list(split_in_time(runs[0]))
     base_id = None
@@ -664,7 +650,7 @@ def _reopen_rates(raw_runs, side, fit, train, max_iter, cycles=REOPEN_CYCLES) ->
     `REOPEN_FACTORS` times the estimate (the base's absorption biases them),
     the best start simulated kept. The best (lowest training sse) of `fit`
     and the cycles."""
-    cls = EFFECTS[fit.name]
+    cls = effect_class(fit.name)
     strengths = [p for p in fit.params if cls.null.get(p, None) == 0.0]
     best = fit
     for _ in range(cycles):
@@ -718,7 +704,7 @@ def _refit_globally(raw_runs, ax, fit, train, seed, side, timing, max_iter) -> C
 
 def _as_base(fit: CandidateFit, base: CandidateFit) -> CandidateFit:
     """The base model written as `fit`'s candidate with its effect off (null parameters)."""
-    null = dict(EFFECTS[fit.name].null)
+    null = dict(effect_class(fit.name).null)
     return replace(
         fit,
         params={p: float(null[p]) for p in fit.params},
@@ -738,7 +724,7 @@ def _determined(fit: CandidateFit) -> tuple[bool, str]:
     """Whether the data determine the effect: every free parameter has a finite
     interval, and at least one strength parameter (null value 0) is farther
     from 0 than its 95 % half-width."""
-    cls = EFFECTS[fit.name]
+    cls = effect_class(fit.name)
     frozen = set(getattr(cls, "frozen", ()))
     # Thresholds (a dead-zone width, a saturation limit, a delay) change the
     # cost in steps: a finite-difference interval says nothing about them,

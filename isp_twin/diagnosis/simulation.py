@@ -201,7 +201,7 @@ def residuals_many(
     Returns:
         One array (P_i, M) per request [rad/s].
     """
-    from isp_twin.effects import EFFECTS
+    from isp_twin.effects import effect_class
 
     sizes = [np.atleast_2d(x).shape[0] for x, _, _ in requests]
     total = sum(sizes)
@@ -209,7 +209,7 @@ def residuals_many(
     names = sorted({name for _, name, _ in requests if name})
     effects = []
     for name in names:
-        cls = EFFECTS[name]
+        cls = effect_class(name)
         cols = {p: np.full(total, float(cls.null[p])) for p in cls.param_names}
         at = 0
         for (_, req_name, params), size in zip(requests, sizes):

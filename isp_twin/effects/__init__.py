@@ -12,8 +12,11 @@ both the fast axis model and the MuJoCo twin:
 
 Parameters are SI; names carry the unit where not SI. One module per effect in
 this package, its class listed in `EFFECTS` below (tests/test_effects.py
-checks that none is missing); `isp_twin.diagnosis` tests them as candidates. Effects are
-stateful only through ``reset()``-able attributes.
+checks that none is missing); `isp_twin.diagnosis` tests them as candidates,
+in the registry's order. Every caller finds a class with `effect_class` (an
+unknown name is one error listing the known ones) and checks parameters with
+`Effect.check_params`. Effects are stateful only through ``reset()``-able
+attributes.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ __all__ = [
     "Effect",
     "EFFECTS",
     "register",
+    "effect_class",
     "make_effect",
     "cable_spring",
     "cogging",
@@ -51,20 +55,21 @@ __all__ = [
     "unbalance",
 ]
 
-#: Effect name -> class: every effect this package ships, listed once here.
+#: Effect name -> class: every effect this package ships, listed once here, in
+#: the order `diagnose` tests and reports them (`isp_twin.diagnosis.search.LIBRARY`).
 EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (
-        cable_spring.CableSpring,
         cogging.Cogging,
-        deadzone.Deadzone,
+        cable_spring.CableSpring,
+        unbalance.Unbalance,
+        torque_offset.TorqueOffset,
         input_delay.InputDelay,
-        lugre.LuGre,
-        resonance.Resonance,
+        deadzone.Deadzone,
         saturation.Saturation,
         sensor_bias.SensorBias,
-        torque_offset.TorqueOffset,
-        unbalance.Unbalance,
+        lugre.LuGre,
+        resonance.Resonance,
     )
 }
 
@@ -75,13 +80,25 @@ def register(cls: type[Effect]) -> type[Effect]:
     return cls
 
 
-def make_effect(spec: EffectSpec, dt: float = 1e-3) -> Effect:
-    """Build the effect named in a parameter file."""
+def effect_class(name: str, what: str = "effect") -> type[Effect]:
+    """The registered class of the effect called `name`.
+
+    Args:
+        name: effect name, e.g. ``cogging``.
+        what: what the caller calls it in the message (``candidate effect``).
+
+    Raises:
+        ParameterError: unknown name; the message suggests the nearest and
+            lists the known ones.
+    """
     try:
-        cls = EFFECTS[spec.name]
+        return EFFECTS[name]
     except KeyError:
         raise ParameterError(
-            f"unknown effect '{spec.name}'{nearest(spec.name, EFFECTS)}; "
-            f"known: {', '.join(sorted(EFFECTS))}"
+            f"unknown {what} '{name}'{nearest(name, EFFECTS)}; known: {', '.join(sorted(EFFECTS))}"
         ) from None
-    return cls(spec.params, dt)
+
+
+def make_effect(spec: EffectSpec, dt: float = 1e-3) -> Effect:
+    """Build the effect named in a parameter file."""
+    return effect_class(spec.name)(spec.params, dt)

@@ -21,17 +21,27 @@ class Effect:
     param_names: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, params: Mapping[str, float], dt: float = 1e-3):
-        missing = [p for p in self.param_names if p not in params]
-        unknown = [p for p in params if p not in self.param_names]
-        if missing or unknown:
-            bad = (missing or unknown)[0]
-            raise ParameterError(
-                f"effect '{self.name}': {'missing' if missing else 'unknown'} parameter "
-                f"'{bad}'{nearest(bad, self.param_names)}; expects {', '.join(self.param_names)}"
-            )
+        self.check_params(params)
         self.params = {k: float(params[k]) for k in self.param_names}
         self.dt = dt
         self.reset()
+
+    @classmethod
+    def check_params(cls, params: Mapping[str, object]) -> None:
+        """Check that `params` names exactly `param_names`.
+
+        Raises:
+            ParameterError: a missing or unknown parameter (the first one,
+                with the nearest name and the expected ones).
+        """
+        missing = [p for p in cls.param_names if p not in params]
+        unknown = [p for p in params if p not in cls.param_names]
+        if missing or unknown:
+            bad = (missing or unknown)[0]
+            raise ParameterError(
+                f"effect '{cls.name}': {'missing' if missing else 'unknown'} parameter "
+                f"'{bad}'{nearest(bad, cls.param_names)}; expects {', '.join(cls.param_names)}"
+            )
 
     def reset(self) -> None:
         """Clear internal state (delay lines, filter states)."""

@@ -11,8 +11,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from isp_twin.effects import EFFECTS, Effect
-from isp_twin.errors import ParameterError, nearest
+from isp_twin.effects import Effect, effect_class
 
 __all__ = ["make_batched"]
 
@@ -23,20 +22,8 @@ def make_batched(name: str, params: Mapping[str, np.ndarray], dt: float) -> Effe
     Raises:
         ParameterError: unknown effect or a missing/unknown parameter.
     """
-    try:
-        cls = EFFECTS[name]
-    except KeyError:
-        raise ParameterError(
-            f"unknown effect '{name}'{nearest(name, EFFECTS)}; known: {', '.join(sorted(EFFECTS))}"
-        ) from None
-    missing = [p for p in cls.param_names if p not in params]
-    unknown = [p for p in params if p not in cls.param_names]
-    if missing or unknown:
-        bad = (missing or unknown)[0]
-        raise ParameterError(
-            f"effect '{name}': {'missing' if missing else 'unknown'} parameter '{bad}'; "
-            f"expects {', '.join(cls.param_names)}"
-        )
+    cls = effect_class(name)
+    cls.check_params(params)
     effect = cls.__new__(cls)
     effect.params = {k: np.asarray(params[k], dtype=float) for k in cls.param_names}
     effect.dt = dt
