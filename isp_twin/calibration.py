@@ -164,15 +164,8 @@ def cell_scenario(
         nfc_parameters: the NFC model, over the scenario's.
         rig: run on this rig file instead of the one the scenario names.
     """
-    if rig is None:
-        scenario = load_scenario(cell.scenario)
-    else:
-        from isp_twin.input_files import load_yaml
-        from isp_twin.resources import find_scenario
-
-        path = find_scenario(cell.scenario)
-        raw, text = load_yaml(path, "scenario file", ScenarioError)
-        scenario = parse_scenario({**raw, "rig": str(Path(rig).resolve())}, path, text)
+    overrides = None if rig is None else {"rig": str(Path(rig).resolve())}
+    scenario = load_scenario(cell.scenario, overrides)
     scenario = scenario.with_nfc(cell.nfc)
     if nfc_parameters is not None:
         scenario = dataclasses.replace(scenario, nfc_parameters=nfc_parameters)

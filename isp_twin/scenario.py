@@ -557,8 +557,12 @@ def parse_scenario(raw: Any, source: str | Path = "<scenario>", text: str = "") 
     return scenario
 
 
-def load_scenario(path: str | Path) -> Scenario:
+def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Load and validate a scenario file (a path, or a bare shipped name).
+
+    Args:
+        path: the file, or a shipped scenario's name.
+        overrides: top-level keys that replace the file's (e.g. ``rig``).
 
     Raises:
         ResourceNotFound: no such file.
@@ -570,6 +574,8 @@ def load_scenario(path: str | Path) -> Scenario:
 
     path = find_scenario(path)
     raw, text = load_yaml(path, "scenario file", ScenarioError)
+    if overrides:
+        raw = {**raw, **overrides}
     return parse_scenario(raw, path, text)
 
 

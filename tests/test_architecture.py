@@ -11,7 +11,10 @@
   listed once, in `isp_twin.vocabulary`: a tuple, list or set literal holding
   two or more of them anywhere else in the package is a restatement (the
   independent reference simulator, `isp_twin.reference`, writes the regime
-  order again on purpose and a test compares it).
+  order again on purpose and a test compares it);
+* effects are looked up only through `isp_twin.effects.effect_class` (no
+  ``EFFECTS[...]`` outside the registry), and YAML is read only by
+  `isp_twin.input_files.load_yaml`.
 
 An import counts wherever it is written (module top, inside a function, a
 relative import, ``from isp_twin import twin``, ``importlib.import_module``).
@@ -255,3 +258,36 @@ def test_effects_are_looked_up_by_one_function():
     assert not found, "\n".join(found)
     assert registry_lookups("isp_twin/diagnosis/search.py", "cls = effects.EFFECTS[name]\n")
     assert registry_lookups("isp_twin/twin.py", "cls = EFFECTS[spec.name]\n")
+
+
+#: PyYAML's readers: only `isp_twin.input_files.load_yaml` calls them (one
+#: loader: numbers like 1e-3, file name and line in the one-line error).
+YAML_READERS = frozenset(
+    {"load", "safe_load", "full_load", "unsafe_load", "load_all", "safe_load_all"}
+)
+
+
+def yaml_reads(rel: str, source: str) -> list[str]:
+    """Calls of ``yaml.<reader>(...)`` outside input_files.py ("file:line")."""
+    if rel == "isp_twin/input_files.py":
+        return []
+    return [
+        f"{rel}:{node.lineno}: yaml.{node.func.attr} (use isp_twin.input_files.load_yaml)"
+        for node in ast.walk(ast.parse(source, filename=rel))
+        if isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Attribute)
+        and node.func.attr in YAML_READERS
+        and isinstance(node.func.value, ast.Name)
+        and node.func.value.id == "yaml"
+    ]
+
+
+def test_yaml_is_read_by_one_loader():
+    root = PACKAGE.parent
+    found = []
+    for path in package_files():
+        found += yaml_reads(path.relative_to(root).as_posix(), path.read_text())
+    assert not found, "\n".join(found)
+    assert yaml_reads("isp_twin/sweep/design.py", "raw = yaml.safe_load(path.read_text())\n")
+    assert yaml_reads("isp_twin/rig.py", "import yaml\nraw = yaml.load(t, Loader=L)\n")
+    assert yaml_reads("isp_twin/parameters.py", "text = yaml.safe_dump(raw)\n") == []

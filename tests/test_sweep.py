@@ -135,6 +135,18 @@ BAD = [
 ]
 
 
+def test_a_broken_parameter_file_to_draw_from_is_named_with_its_line(files, tmp_path, capsys):
+    # Line 3 holds the error (a second ": " in a plain scalar).
+    (tmp_path / "broken.yaml").write_text("name: broken\nsample_time_s: 0.001\nunits: a: b\n")
+    path = files({"parameters": "broken.yaml", "uncertainty": {"draws": 2}})
+    store = tmp_path / "store.sqlite"
+    assert main(["sweep", str(path), "--store", str(store), "--in-process"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "sw.yaml: uncertainty: " in err and "broken.yaml: line 3 not valid YAML" in err, err
+    assert not store.exists()
+
+
 @pytest.mark.parametrize(("sweep", "message"), BAD)
 def test_a_bad_sweep_file_is_one_line_naming_the_key_with_exit_2_before_any_run(
     files, tmp_path, capsys, sweep, message

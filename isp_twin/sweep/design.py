@@ -386,7 +386,7 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
             names the sweep file and the key path.
         ResourceNotFound: the scenario or parameter file does not exist.
     """
-    import yaml
+    from isp_twin.input_files import load_yaml
 
     src = Path(source) if not str(source).startswith("<") else None
     top = f"{source}:"
@@ -454,9 +454,9 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
         n_draws = _int(u.get("draws", 0), f"{where}uncertainty.draws", lo=1)
         useed = _int(u.get("seed", 0), f"{where}uncertainty.seed")
         try:
-            params_raw = yaml.safe_load(params_path.read_text()) or {}
-        except (OSError, yaml.YAMLError) as exc:
-            raise _err(f"{where}uncertainty", f"cannot read {params_path}: {exc}") from None
+            params_raw = load_yaml(params_path, "parameter file", ScenarioError)[0] or {}
+        except IspTwinError as exc:
+            raise type(exc)(f"{where}uncertainty: {exc}") from None
         if not draw_parameters(params_raw, useed, 0):
             raise _err(f"{where}uncertainty", f"{params_path} gives no ci95 to draw from")
         draws = list(range(n_draws))
