@@ -41,7 +41,7 @@ STATIC_INDICES = (2, 7, 12, 17)
 POLISH_RATE: tuple[int, ...] = ()
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class CandidateFit:
     """The model refitted with one candidate effect (or none).
 

@@ -480,7 +480,17 @@ def diagnose(
     x_file = ax.rate_params().to_vector()
     fixed = tuple(ax.effects)
     given = CandidateFit(
-        BASELINE, {}, {}, x_file, np.full(20, np.nan), np.nan, 1, 20, np.nan, None, fixed
+        name=BASELINE,
+        params={},
+        ci95={},
+        rate_vector=x_file,
+        rate_ci95=np.full(20, np.nan),
+        sse=np.nan,
+        n_samples=1,
+        n_params=20,
+        bic=np.nan,
+        status=None,
+        fixed=fixed,
     )
     before_held = (
         holdout_residual(held, given) if held is not None else holdout_residual(train, given)
