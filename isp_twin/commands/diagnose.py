@@ -17,7 +17,7 @@ from isp_twin.commands.data_options import (
     mapping_from_args,
 )
 from isp_twin.commands.progress import working
-from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
+from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, FIXED_SIDE
 from isp_twin.errors import ParameterError
 from isp_twin.measured import check_sample_period, load_measured, unique_names
 from isp_twin.outputs import check_outputs, is_stdout, transaction
@@ -58,7 +58,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--side",
         default="measured",
-        choices=("measured", "raw", "right", "left"),
+        choices=tuple(FIXED_SIDE),
         help="half-plane of the regimes: measured (the angle fused with the integrated rate, "
         "as identify; the raw angle if that fits the starting model better), raw (the angle "
         "as measured), or fixed (a freely spinning motor)",

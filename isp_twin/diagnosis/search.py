@@ -62,6 +62,9 @@ REOPEN_FACTORS = (0.5, 1.0, 1.5, 2.0)
 
 #: The candidate effects, in report order: the registry's.
 LIBRARY: tuple[str, ...] = tuple(EFFECTS)
+#: The side sources `diagnose` accepts (identification's but ``wrap``) -> the
+#: side each fixes (None: read from the angle).
+FIXED_SIDE: dict[str, int | None] = {"measured": None, "raw": None, "right": SIDE_R, "left": SIDE_L}
 
 
 @dataclass(frozen=True)
@@ -381,7 +384,7 @@ def diagnose(
     """
     runs = list(runs)
     holdout = list(holdout)
-    sides = {"measured": None, "raw": None, "right": SIDE_R, "left": SIDE_L}
+    sides = FIXED_SIDE
     if side not in sides:
         raise ParameterError(
             f"diagnose: side '{side}'{nearest(side, sides)}; allowed: {', '.join(sides)}"
