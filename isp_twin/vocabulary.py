@@ -1,7 +1,8 @@
 """The names the package shares: gimbal axes, turntable joints, angle sides, friction regimes.
 
 Each is defined here once and imported from here (tests/test_architecture.py
-fails on a module-level tuple of these names anywhere else in the package).
+fails on a tuple, list or set literal of two or more of these names anywhere
+else in the package).
 The independent reference simulator (`isp_twin.reference`) writes the regime
 order again on purpose, and a test compares it with `REGIMES`.
 
