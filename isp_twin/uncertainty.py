@@ -630,7 +630,7 @@ def plot_uncertainty(res: UncertaintyResult, path: str | Path, top: int = 12) ->
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from isp_twin.atomic import atomic_path
+    from isp_twin.output.files import staged_path
 
     fig, axes = plt.subplots(1, 3, figsize=(15.0, 4.8))
     ax = axes[0]
@@ -675,7 +675,7 @@ def plot_uncertainty(res: UncertaintyResult, path: str | Path, top: int = 12) ->
         f"{res.scenario}: {res.draws - res.failed} draws of plant (Table 2 ci95) and rig settings"
     )
     fig.tight_layout()
-    with atomic_path(path) as tmp:
+    with staged_path(path) as tmp:
         fig.savefig(tmp, dpi=100, format="png")
     plt.close(fig)
     return Path(path)

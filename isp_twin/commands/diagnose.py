@@ -8,7 +8,6 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
@@ -20,7 +19,7 @@ from isp_twin.commands.progress import working
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
 from isp_twin.measured import check_sample_period, load_measured, unique_names
-from isp_twin.outputs import check_outputs, is_stdout, transaction
+from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.units import DEG
 

@@ -8,7 +8,6 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
@@ -20,7 +19,7 @@ from isp_twin.errors import ParameterError
 from isp_twin.identification import SIDES, Settings, identify, to_axis_params
 from isp_twin.identification_report import identification_verdict, result_json, write_report
 from isp_twin.measured import check_sample_period, load_measured, unique_names
-from isp_twin.outputs import check_outputs, transaction
+from isp_twin.output.files import check_outputs, transaction, write_text_atomic
 from isp_twin.parameters import AXES, load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG

@@ -9,9 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import ScenarioError
-from isp_twin.outputs import check_outputs, is_stdout, transaction
+from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
 from isp_twin.parameters import load_parameters
 from isp_twin.resources import find_scenario
 from isp_twin.results import RunResult
@@ -104,7 +103,7 @@ def execute(args: argparse.Namespace) -> int:
     name = scenario.name or Path(scenario.source or args.scenario).stem
     recording = None
     if not args.no_recording:
-        from isp_twin.recording import default_recording_path
+        from isp_twin.output.recording import default_recording_path
 
         recording = args.recording or default_recording_path(name)
     check_outputs(
@@ -135,7 +134,7 @@ def execute(args: argparse.Namespace) -> int:
         if args.json is not None:
             write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
         if recording is not None:
-            from isp_twin.recording import record_run
+            from isp_twin.output.recording import record_run
 
             record_run(result, recording, spawn=args.spawn, connect=args.connect)
     if args.json is not None and not is_stdout(args.json):
