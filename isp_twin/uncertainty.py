@@ -465,9 +465,6 @@ def run_uncertainty(
     Raises:
         ScenarioError: no draws, or a drawn setting the scenario loader rejects.
     """
-    from isp_twin.sweep.execute import execute
-    from isp_twin.sweep.store import ResultStore
-
     if n_draws < 2:
         raise ScenarioError(f"--uncertainty needs at least 2 draws, got {n_draws}")
     if scenario.kind != "closed_loop":
@@ -479,35 +476,12 @@ def run_uncertainty(
     runs = uncertainty_runs(scenario, n_draws, seed, path, knobs, axis, first_seed)
     seeds = range(scenario.seed, scenario.seed + oat_seeds)
     extra = oat_runs(scenario, path, knobs, seeds, axis) if oat else []
-    everything = runs + extra
-    with ResultStore(":memory:") as store:
-        progress = None
-        if on_progress is not None:
-
-            def progress(p) -> None:
-                on_progress(p.done, p.total)
-
-        execute(everything, store, workers=jobs, in_process=jobs <= 1, on_progress=progress)
-        outcomes = store.outcomes([r.key for r in everything])
+    outcomes = _execute_runs(runs + extra, jobs, on_progress)
 
     def j_of(o: RunOutcome) -> float | None:
-        m = o.metrics.get(axis) if o.status == "ok" else None
-        return None if m is None else float(m["isolation_percent"])
+        return _j_of(o, axis)
 
-    ok_draws, j_pi, j_nfc = [], [], []
-    for d in range(n_draws):
-        a, b = j_of(outcomes[runs[2 * d].key]), j_of(outcomes[runs[2 * d + 1].key])
-        if a is not None and b is not None:
-            ok_draws.append(d)
-            j_pi.append(a)
-            j_nfc.append(b)
-    if len(ok_draws) < 2:
-        reasons = {o.error for o in outcomes.values() if o.status != "ok"}
-        raise ScenarioError(
-            f"{scenario.name}: fewer than 2 draws ran ({n_draws - len(ok_draws)} failed: "
-            f"{'; '.join(sorted(str(r) for r in reasons))[:300]})"
-        )
-    jp, jn = np.array(j_pi), np.array(j_nfc)
+    ok_draws, jp, jn = _paired_j(scenario, runs, outcomes, n_draws, j_of)
     red = 100.0 * (jp - jn) / jp
     pi_runs = [runs[2 * d] for d in ok_draws]
     inputs = {k.name: np.array([float(r.knobs[k.name]) for r in pi_runs]) for k in knobs}
@@ -532,6 +506,58 @@ def run_uncertainty(
         oat=tuple(oat_rows),
         oat_nominal=nominal,
     )
+
+
+def _execute_runs(
+    runs: Sequence[RunSpec], jobs: int, on_progress: Callable[[int, int], None] | None
+) -> dict[str, RunOutcome]:
+    """Run everything on the sweep machinery (a store in memory): run key -> outcome."""
+    from isp_twin.sweep.execute import execute
+    from isp_twin.sweep.store import ResultStore
+
+    with ResultStore(":memory:") as store:
+        progress = None
+        if on_progress is not None:
+
+            def progress(p) -> None:
+                on_progress(p.done, p.total)
+
+        execute(runs, store, workers=jobs, in_process=jobs <= 1, on_progress=progress)
+        return store.outcomes([r.key for r in runs])
+
+
+def _j_of(o: RunOutcome, axis: str) -> float | None:
+    """J of Eq. 10 [%] on `axis`, None when the run failed."""
+    m = o.metrics.get(axis) if o.status == "ok" else None
+    return None if m is None else float(m["isolation_percent"])
+
+
+def _paired_j(
+    scenario: Scenario,
+    runs: Sequence[RunSpec],
+    outcomes: Mapping[str, RunOutcome],
+    n_draws: int,
+    j_of: Callable[[RunOutcome], float | None],
+) -> tuple[list[int], np.ndarray, np.ndarray]:
+    """The draws whose PI and PI+NFC runs both ran, with their J [%] (PI, PI+NFC).
+
+    Raises:
+        ScenarioError: fewer than 2 draws ran (the message has the failures' reasons).
+    """
+    ok_draws, j_pi, j_nfc = [], [], []
+    for d in range(n_draws):
+        a, b = j_of(outcomes[runs[2 * d].key]), j_of(outcomes[runs[2 * d + 1].key])
+        if a is not None and b is not None:
+            ok_draws.append(d)
+            j_pi.append(a)
+            j_nfc.append(b)
+    if len(ok_draws) < 2:
+        reasons = {o.error for o in outcomes.values() if o.status != "ok"}
+        raise ScenarioError(
+            f"{scenario.name}: fewer than 2 draws ran ({n_draws - len(ok_draws)} failed: "
+            f"{'; '.join(sorted(str(r) for r in reasons))[:300]})"
+        )
+    return ok_draws, np.array(j_pi), np.array(j_nfc)
 
 
 def _oat_table(runs, outcomes, knobs, axis, j_of):
