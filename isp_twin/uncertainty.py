@@ -32,6 +32,7 @@ every knob with a `range` is drawn, where its `when` conditions hold.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -465,32 +466,17 @@ def run_uncertainty(
     Raises:
         ScenarioError: no draws, or a drawn setting the scenario loader rejects.
     """
-    if n_draws < 2:
-        raise ScenarioError(f"--uncertainty needs at least 2 draws, got {n_draws}")
-    if scenario.kind != "closed_loop":
-        raise ScenarioError(f"{scenario.source}: kind: uncertainty needs a closed_loop scenario")
-    if knobs is None:
-        knobs = rig_knob_ranges(load_rig(scenario.rig_path))
-    knobs = _applicable(scenario, knobs)
+    knobs = _checked_knobs(scenario, n_draws, knobs)
     path = Path(params_path or scenario.parameters_path)
     runs = uncertainty_runs(scenario, n_draws, seed, path, knobs, axis, first_seed)
     seeds = range(scenario.seed, scenario.seed + oat_seeds)
     extra = oat_runs(scenario, path, knobs, seeds, axis) if oat else []
     outcomes = _execute_runs(runs + extra, jobs, on_progress)
-
-    def j_of(o: RunOutcome) -> float | None:
-        return _j_of(o, axis)
-
+    j_of = functools.partial(_j_of, axis=axis)
     ok_draws, jp, jn = _paired_j(scenario, runs, outcomes, n_draws, j_of)
     red = 100.0 * (jp - jn) / jp
-    pi_runs = [runs[2 * d] for d in ok_draws]
-    inputs = {k.name: np.array([float(r.knobs[k.name]) for r in pi_runs]) for k in knobs}
-    inputs.update({k: np.array(v) for k, v in _plant_inputs(pi_runs).items()})
-    rows = sensitivity(inputs, (jp, jn, red))
-    oat_rows: list[OatRow] = []
-    nominal = None
-    if oat:
-        nominal, oat_rows = _oat_table(extra, outcomes, knobs, axis, j_of)
+    inputs = _drawn_inputs([runs[2 * d] for d in ok_draws], knobs)
+    nominal, oat_rows = _oat_table(extra, outcomes, knobs, axis, j_of) if oat else (None, [])
     return UncertaintyResult(
         scenario=scenario.name,
         axis=axis,
@@ -501,11 +487,28 @@ def run_uncertainty(
         reduction=red,
         draws=n_draws,
         failed=n_draws - len(ok_draws),
-        sensitivity=rows,
+        sensitivity=sensitivity(inputs, (jp, jn, red)),
         paper_reduction=PAPER_REDUCTION.get(scenario.name),
         oat=tuple(oat_rows),
         oat_nominal=nominal,
     )
+
+
+def _checked_knobs(
+    scenario: Scenario, n_draws: int, knobs: Sequence[KnobRange] | None
+) -> tuple[KnobRange, ...]:
+    """The knob ranges to draw (default: the scenario's rig file), those that apply.
+
+    Raises:
+        ScenarioError: fewer than 2 draws, or not a closed-loop scenario.
+    """
+    if n_draws < 2:
+        raise ScenarioError(f"--uncertainty needs at least 2 draws, got {n_draws}")
+    if scenario.kind != "closed_loop":
+        raise ScenarioError(f"{scenario.source}: kind: uncertainty needs a closed_loop scenario")
+    if knobs is None:
+        knobs = rig_knob_ranges(load_rig(scenario.rig_path))
+    return _applicable(scenario, knobs)
 
 
 def _execute_runs(
@@ -524,6 +527,13 @@ def _execute_runs(
 
         execute(runs, store, workers=jobs, in_process=jobs <= 1, on_progress=progress)
         return store.outcomes([r.key for r in runs])
+
+
+def _drawn_inputs(pi_runs: Sequence[RunSpec], knobs: Sequence[KnobRange]) -> dict[str, np.ndarray]:
+    """Each drawn input (rig knob, plant parameter) over the runs, shape (draws,)."""
+    inputs = {k.name: np.array([float(r.knobs[k.name]) for r in pi_runs]) for k in knobs}
+    inputs.update({k: np.array(v) for k, v in _plant_inputs(pi_runs).items()})
+    return inputs
 
 
 def _j_of(o: RunOutcome, axis: str) -> float | None:
