@@ -110,14 +110,7 @@ def execute(args: argparse.Namespace) -> int:
         {"--json": args.json, "--recording": recording},
         inputs=[scenario.source, params_path],
     )
-    # The simulator (MuJoCo) is imported before the header: once it is printed
-    # the run starts at once (and Ctrl-C from then on keeps what ran).
-    if scenario.kind == "closed_loop":
-        import isp_twin.closed_loop
-
-        isp_twin.closed_loop.load_kernel()  # numba and the compiled loop, if available
-    elif args.engine == "twin":
-        import isp_twin.twin  # noqa: F401
+    _load_simulator(scenario, args.engine)
     print(f"scenario {name}  ({scenario.source})")
     print(f"parameters {params_path}  seed {seed}")
     if scenario.kind == "closed_loop":
@@ -129,7 +122,26 @@ def execute(args: argparse.Namespace) -> int:
         result, payload = _run_closed_loop(scenario, params, params_path, name, seed)
     # A run stopped by Ctrl-C still writes what it has, and says so.
     payload["interrupted"] = result.interrupted
+    _write_outputs(args, result, payload, recording)
+    if result.interrupted:
+        print("interrupted: the outputs hold the run up to the interruption", file=sys.stderr)
+        return 130
+    return 0
 
+
+def _load_simulator(scenario, engine: str) -> None:
+    """Import the simulator (MuJoCo, numba) before the header: once the header is
+    printed the run starts at once (and Ctrl-C from then on keeps what ran)."""
+    if scenario.kind == "closed_loop":
+        import isp_twin.closed_loop
+
+        isp_twin.closed_loop.load_kernel()  # numba and the compiled loop, if available
+    elif engine == "twin":
+        import isp_twin.twin  # noqa: F401
+
+
+def _write_outputs(args: argparse.Namespace, result, payload: dict, recording) -> None:
+    """The JSON and the recording, as one transaction; then say where they went."""
     with transaction():
         if args.json is not None:
             write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
@@ -141,10 +153,6 @@ def execute(args: argparse.Namespace) -> int:
         print(f"metrics written to {args.json}")
     if recording is not None:
         print(f"recording written to {recording}  (open it with: rerun {recording})")
-    if result.interrupted:
-        print("interrupted: the outputs hold the run up to the interruption", file=sys.stderr)
-        return 130
-    return 0
 
 
 def _run_closed_loop(scenario, params, params_path, name, seed):
