@@ -88,20 +88,7 @@ def add_parser(sub) -> None:
 
 
 def execute(args) -> int:
-    if args.generations < 0:
-        raise ParameterError(f"--generations must be >= 0, got {args.generations}")
-    for option, value in (
-        ("--population", args.population),
-        ("--refine-evaluations", args.refine_evaluations),
-        ("--min-regime-samples", args.min_regime_samples),
-    ):
-        if value < 1:
-            raise ParameterError(f"{option} must be >= 1, got {value}")
-    if args.seed < 0:
-        raise ParameterError(f"--seed must be >= 0, got {args.seed}")
-    if not math.isfinite(args.rest_rate) or args.rest_rate < 0:
-        raise ParameterError(f"--rest-rate must be a finite number >= 0, got {args.rest_rate}")
-    check_initial_angle(args)
+    _check_options(args)
     prior_path = args.prior or default_parameters_path()
     inputs = [*args.data, *args.validate, prior_path, *([args.describe] if args.describe else [])]
     check_outputs({"--out": args.out}, inputs)  # the report's default name derives from it
@@ -109,48 +96,9 @@ def execute(args) -> int:
     if not args.no_report:
         report = args.report or args.out.with_name(f"{args.out.stem}_report.md")
     check_outputs({"--out": args.out, "--report": report, "--json": args.json}, inputs)
-
-    mapping = mapping_from_args(args)
-    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.validate]])
-    check_sample_budget(runs, args)
-    train, validation = runs[: len(args.data)], runs[len(args.data) :]
-    prior_set = load_parameters(prior_path)
-    prior = prior_set.axis(args.axis)
-    periods = check_sample_period(
-        train + validation, prior_set.sample_time_s, str(prior_set.path or prior_set.name)
-    )
-    if not args.quiet:
-        for line in periods:
-            print(line)
-    settings = Settings(
-        seed=args.seed,
-        generations=args.generations,
-        population=args.population,
-        refine=not args.no_refine,
-        refine_evaluations=args.refine_evaluations,
-        min_regime_samples=args.min_regime_samples,
-        rest_rate_deg_s=args.rest_rate,
-        side=args.side,
-        prior_in_search=args.prior_in_search,
-        integration=integration_from_args(args),
-    )
+    train, validation, prior_set, prior = _load_runs(args, prior_path)
     show = not args.quiet and sys.stderr.isatty()
-
-    def progress(stage: str, step: int, cost: float) -> None:
-        if show:
-            label = (
-                "generation {}: best RMS"
-                if stage == "search"
-                else "refinement, {} simulated sets: RMS"
-            )
-            print(
-                f"\r{label.format(step)} {cost / DEG:.5g} deg/s   ",
-                end="",
-                file=sys.stderr,
-                flush=True,
-            )
-
-    result = identify(train, prior, settings, progress)
+    result = identify(train, prior, _settings(args), _progress_printer(show))
     if show:
         print(file=sys.stderr)
     names = ", ".join(d.name for d in train)
@@ -183,3 +131,77 @@ def execute(args) -> int:
         for line in verdict.lines():
             print(line)
     return 0
+
+
+def _check_options(args) -> None:
+    """The search options' ranges and the initial angle (before any file is read).
+
+    Raises:
+        ParameterError: an option out of its range, naming it.
+    """
+    if args.generations < 0:
+        raise ParameterError(f"--generations must be >= 0, got {args.generations}")
+    for option, value in (
+        ("--population", args.population),
+        ("--refine-evaluations", args.refine_evaluations),
+        ("--min-regime-samples", args.min_regime_samples),
+    ):
+        if value < 1:
+            raise ParameterError(f"{option} must be >= 1, got {value}")
+    if args.seed < 0:
+        raise ParameterError(f"--seed must be >= 0, got {args.seed}")
+    if not math.isfinite(args.rest_rate) or args.rest_rate < 0:
+        raise ParameterError(f"--rest-rate must be a finite number >= 0, got {args.rest_rate}")
+    check_initial_angle(args)
+
+
+def _load_runs(args, prior_path: Path):
+    """(training runs, validation runs, prior set, its axis), sample periods checked."""
+    mapping = mapping_from_args(args)
+    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.validate]])
+    check_sample_budget(runs, args)
+    train, validation = runs[: len(args.data)], runs[len(args.data) :]
+    prior_set = load_parameters(prior_path)
+    prior = prior_set.axis(args.axis)
+    periods = check_sample_period(
+        train + validation, prior_set.sample_time_s, str(prior_set.path or prior_set.name)
+    )
+    if not args.quiet:
+        for line in periods:
+            print(line)
+    return train, validation, prior_set, prior
+
+
+def _settings(args) -> Settings:
+    return Settings(
+        seed=args.seed,
+        generations=args.generations,
+        population=args.population,
+        refine=not args.no_refine,
+        refine_evaluations=args.refine_evaluations,
+        min_regime_samples=args.min_regime_samples,
+        rest_rate_deg_s=args.rest_rate,
+        side=args.side,
+        prior_in_search=args.prior_in_search,
+        integration=integration_from_args(args),
+    )
+
+
+def _progress_printer(show: bool):
+    """The search's progress callback: one overwritten line on a terminal."""
+
+    def progress(stage: str, step: int, cost: float) -> None:
+        if show:
+            label = (
+                "generation {}: best RMS"
+                if stage == "search"
+                else "refinement, {} simulated sets: RMS"
+            )
+            print(
+                f"\r{label.format(step)} {cost / DEG:.5g} deg/s   ",
+                end="",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    return progress
