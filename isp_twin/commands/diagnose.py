@@ -45,6 +45,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="updated parameter file (YAML)")
     p.add_argument("--axis", default="inner_az", choices=AXES, help="the axis the data belong to")
     add_data_options(p)
+    _add_search_options(p)
+    _add_output_options(p)
+    p.add_argument("--seed", type=int, default=0, help="seed of the base model's global search")
+    p.add_argument(
+        "--base-search",
+        action="store_true",
+        help="fit the base model with identify's global method first (and the winner again "
+        "with its effect held) instead of starting from the file's rate parameters",
+    )
+    p.add_argument("--quiet", action="store_true", help="print only the verdict line")
+    p.set_defaults(execute=execute)
+
+
+def _add_search_options(p: argparse.ArgumentParser) -> None:
+    """Which effects are tried, on which half-plane, how many, how hard."""
     p.add_argument(
         "--candidates",
         default=None,
@@ -66,6 +81,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=DEFAULT_ITERATIONS,
         help="Levenberg-Marquardt iterations per refit",
     )
+
+
+def _add_output_options(p: argparse.ArgumentParser) -> None:
+    """The JSON result, the report folder and the residual recording."""
     p.add_argument(
         "--json", type=Path, default=None, metavar="PATH", help="write the result as JSON"
     )
@@ -84,15 +103,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="Rerun recording of the residuals (default: REPORT_DIR/residuals.rrd)",
     )
     p.add_argument("--no-recording", action="store_true", help="do not write a Rerun recording")
-    p.add_argument("--seed", type=int, default=0, help="seed of the base model's global search")
-    p.add_argument(
-        "--base-search",
-        action="store_true",
-        help="fit the base model with identify's global method first (and the winner again "
-        "with its effect held) instead of starting from the file's rate parameters",
-    )
-    p.add_argument("--quiet", action="store_true", help="print only the verdict line")
-    p.set_defaults(execute=execute)
 
 
 def execute(args: argparse.Namespace) -> int:
