@@ -351,15 +351,7 @@ def evaluate_cells(
     def body(client):
         scan = fit_rig(rig, n_runs, first_seed, jobs, client) if fit else None
         settings = _settings_of(rig, scan.best) if scan is not None else {}
-        work = []
-        for name, cell in PAPER_CELLS.items():
-            if roles[name].repeat_of is not None:
-                continue  # the same runs as the earlier cell
-            work += [(name, cell_scenario(cell, settings, rig=rig.path), s) for s in seeds]
-            if cell.nfc:
-                exact = cell_scenario(cell, settings, nfc_parameters="plant", rig=rig.path)
-                work += [((name, "exact"), exact, s) for s in seeds]
-        runs = _run_many(work, jobs, client)
+        runs = _run_many(_cell_work(rig, roles, settings, seeds), jobs, client)
         return scan, settings, runs
 
     scan, settings, runs = _with_client(jobs, total, body)
@@ -367,20 +359,36 @@ def evaluate_cells(
     for name, cell in PAPER_CELLS.items():
         role = roles[name]
         source = role.repeat_of or name
-        rs = runs[source]
-        exact = runs.get((source, "exact"))
-        cells[name] = CellResult(
-            cell=cell,
-            role=role,
-            j=campaign_stats([r["isolation_percent"] for r in rs]),
-            mean_max_abs_error_deg_s=_mean([r["max_abs_error_deg_s"] for r in rs]),
-            mean_rms_error_deg_s=_mean([r["rms_error_deg_s"] for r in rs]),
-            exact=campaign_stats([r["isolation_percent"] for r in exact]) if exact else None,
-            exact_mean_rms_error_deg_s=(
-                _mean([r["rms_error_deg_s"] for r in exact]) if exact else None
-            ),
-        )
+        cells[name] = _cell_result(cell, role, runs[source], runs.get((source, "exact")))
     return Evaluation(rig.name, settings, n_runs, first_seed, cells, scan)
+
+
+def _cell_work(rig: Rig, roles: Mapping[str, CellRole], settings, seeds) -> list:
+    """(tag, scenario, seed) of every run: each cell's, and its exact-NFC twin's."""
+    work = []
+    for name, cell in PAPER_CELLS.items():
+        if roles[name].repeat_of is not None:
+            continue  # the same runs as the earlier cell
+        work += [(name, cell_scenario(cell, settings, rig=rig.path), s) for s in seeds]
+        if cell.nfc:
+            exact = cell_scenario(cell, settings, nfc_parameters="plant", rig=rig.path)
+            work += [((name, "exact"), exact, s) for s in seeds]
+    return work
+
+
+def _cell_result(cell: PaperCell, role: CellRole, rs: Sequence[Mapping], exact) -> CellResult:
+    """A cell's J and tracking errors over its runs (and its exact-NFC runs, if any)."""
+    return CellResult(
+        cell=cell,
+        role=role,
+        j=campaign_stats([r["isolation_percent"] for r in rs]),
+        mean_max_abs_error_deg_s=_mean([r["max_abs_error_deg_s"] for r in rs]),
+        mean_rms_error_deg_s=_mean([r["rms_error_deg_s"] for r in rs]),
+        exact=campaign_stats([r["isolation_percent"] for r in exact]) if exact else None,
+        exact_mean_rms_error_deg_s=(
+            _mean([r["rms_error_deg_s"] for r in exact]) if exact else None
+        ),
+    )
 
 
 def _mean(x: Sequence[float]) -> float:

@@ -209,7 +209,6 @@ LONG_FUNCTIONS = {
     "isp_twin/reference/truth.py::truth_record",
     "isp_twin/rig.py::_parse_knob",
     "isp_twin/sweep/execute.py::execute",
-    "isp_twin/calibration.py::evaluate_cells",
 }
 
 
