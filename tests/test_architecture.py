@@ -208,7 +208,6 @@ LONG_FUNCTIONS = {
     "isp_twin/reference/experiment.py::_design_run",
     "isp_twin/reference/truth.py::truth_record",
     "isp_twin/rig.py::_parse_knob",
-    "isp_twin/sweep/execute.py::execute",
 }
 
 
