@@ -204,7 +204,6 @@ LONG_FUNCTIONS = {
     "isp_twin/diagnosis/report.py::write_report",
     "isp_twin/diagnosis/residual.py::analyse",
     # Not split yet (issue 11, item 5): the next to go.
-    "isp_twin/reference/truth.py::truth_record",
     "isp_twin/rig.py::_parse_knob",
 }
 
