@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.calibration import calibration_markdown, evaluate_cells
 from isp_twin.campaign import TABLE4_SCENARIOS
 from isp_twin.closed_loop import run_scenario
+from isp_twin.output.files import write_text_atomic
 from isp_twin.paper import TABLE4_ACTUAL, TABLE5, TABLE6, relative_reduction
 from isp_twin.rig import resolve_rig
 from isp_twin.scenario import Scenario, load_scenario

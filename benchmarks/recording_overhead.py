@@ -21,7 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from isp_twin.recording import JOINTS, record_run, verify_recording
+from isp_twin.output.kinematics import JOINTS
+from isp_twin.output.readback import verify_recording
+from isp_twin.output.recording import record_run
 from isp_twin.results import RunResult
 from isp_twin.units import DEG
 

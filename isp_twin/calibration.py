@@ -344,15 +344,7 @@ def evaluate_cells(
     def body(client):
         scan = fit_rig(rig, n_runs, first_seed, jobs, client) if fit else None
         settings = _settings_of(rig, scan.best) if scan is not None else {}
-        work = []
-        for name, cell in PAPER_CELLS.items():
-            if roles[name].repeat_of is not None:
-                continue  # the same runs as the earlier cell
-            work += [(name, cell_scenario(cell, settings, rig=rig.path), s) for s in seeds]
-            if cell.nfc:
-                exact = cell_scenario(cell, settings, nfc_parameters="plant", rig=rig.path)
-                work += [((name, "exact"), exact, s) for s in seeds]
-        runs = _run_many(work, jobs, client)
+        runs = _run_many(_cell_work(rig, roles, settings, seeds), jobs, client)
         return scan, settings, runs
 
     scan, settings, runs = _with_client(jobs, total, body)
@@ -360,20 +352,36 @@ def evaluate_cells(
     for name, cell in PAPER_CELLS.items():
         role = roles[name]
         source = role.repeat_of or name
-        rs = runs[source]
-        exact = runs.get((source, "exact"))
-        cells[name] = CellResult(
-            cell=cell,
-            role=role,
-            j=campaign_stats([r["isolation_percent"] for r in rs]),
-            mean_max_abs_error_deg_s=_mean([r["max_abs_error_deg_s"] for r in rs]),
-            mean_rms_error_deg_s=_mean([r["rms_error_deg_s"] for r in rs]),
-            exact=campaign_stats([r["isolation_percent"] for r in exact]) if exact else None,
-            exact_mean_rms_error_deg_s=(
-                _mean([r["rms_error_deg_s"] for r in exact]) if exact else None
-            ),
-        )
+        cells[name] = _cell_result(cell, role, runs[source], runs.get((source, "exact")))
     return Evaluation(rig.name, settings, n_runs, first_seed, cells, scan)
+
+
+def _cell_work(rig: Rig, roles: Mapping[str, CellRole], settings, seeds) -> list:
+    """(tag, scenario, seed) of every run: each cell's, and its exact-NFC twin's."""
+    work = []
+    for name, cell in PAPER_CELLS.items():
+        if roles[name].repeat_of is not None:
+            continue  # the same runs as the earlier cell
+        work += [(name, cell_scenario(cell, settings, rig=rig.path), s) for s in seeds]
+        if cell.nfc:
+            exact = cell_scenario(cell, settings, nfc_parameters="plant", rig=rig.path)
+            work += [((name, "exact"), exact, s) for s in seeds]
+    return work
+
+
+def _cell_result(cell: PaperCell, role: CellRole, rs: Sequence[Mapping], exact) -> CellResult:
+    """A cell's J and tracking errors over its runs (and its exact-NFC runs, if any)."""
+    return CellResult(
+        cell=cell,
+        role=role,
+        j=campaign_stats([r["isolation_percent"] for r in rs]),
+        mean_max_abs_error_deg_s=_mean([r["max_abs_error_deg_s"] for r in rs]),
+        mean_rms_error_deg_s=_mean([r["rms_error_deg_s"] for r in rs]),
+        exact=campaign_stats([r["isolation_percent"] for r in exact]) if exact else None,
+        exact_mean_rms_error_deg_s=(
+            _mean([r["rms_error_deg_s"] for r in exact]) if exact else None
+        ),
+    )
 
 
 def _mean(x: Sequence[float]) -> float:
@@ -441,29 +449,46 @@ def calibration_markdown(ev: Evaluation, title: str = "Paper vs twin: Tables 4-6
         "",
     ]
     if ev.fit is not None and ev.fit.knobs:
-        f = ev.fit
-        out += [
-            f"## Fit: {', '.join(f.knobs)} on {', '.join(f.cells)}",
-            "",
-            "| " + " | ".join(f.knobs) + " | " + " | ".join(f.cells) + " | sse [points^2] |",
-            "|" + "---|" * (len(f.knobs) + len(f.cells) + 1),
-        ]
-        for combo, means, sse in zip(f.candidates, f.cell_means, f.sse):
-            out.append(
-                "| "
-                + " | ".join(f"{v:g}" for v in combo)
-                + " | "
-                + " | ".join(f"{means[c]:.2f}" for c in f.cells)
-                + f" | {sse:.2f} |"
-            )
-        out.append(
-            "| paper | "
-            + " | ".join(f"{PAPER_CELLS[c].paper_percent:.2f}" for c in f.cells)
-            + " | 0 |"
-        )
-        out += ["", "Fitted: " + ", ".join(f"{k} = {v:g}" for k, v in f.best.items()), ""]
+        out += _fit_section(ev.fit)
     out += ["## Every paper cell", ""] + _table_rows(ev)
-    out += [
+    out += _nfc_models_section(ev)
+    out += _tracking_errors_section(ev)
+    out += ["", "## Notes", ""] + _notes(ev) + [""]
+    return "\n".join(out)
+
+
+def _fit_section(f: FitResult) -> list[str]:
+    """Every knob combination tried, its cells' mean J and its error; the fitted values."""
+    out = [
+        f"## Fit: {', '.join(f.knobs)} on {', '.join(f.cells)}",
+        "",
+        "| " + " | ".join(f.knobs) + " | " + " | ".join(f.cells) + " | sse [points^2] |",
+        "|" + "---|" * (len(f.knobs) + len(f.cells) + 1),
+    ]
+    for combo, means, sse in zip(f.candidates, f.cell_means, f.sse):
+        out.append(
+            "| "
+            + " | ".join(f"{v:g}" for v in combo)
+            + " | "
+            + " | ".join(f"{means[c]:.2f}" for c in f.cells)
+            + f" | {sse:.2f} |"
+        )
+    out.append(
+        "| paper | " + " | ".join(f"{PAPER_CELLS[c].paper_percent:.2f}" for c in f.cells) + " | 0 |"
+    )
+    return out + ["", "Fitted: " + ", ".join(f"{k} = {v:g}" for k, v in f.best.items()), ""]
+
+
+#: (label, paper table, PI cell, PI+NFC cell) of the two NFC experiments.
+_NFC_PAIRS = (
+    ("Table 5", TABLE5, "table5_pi", "table5_pi_nfc"),
+    ("Table 6", TABLE6, "table6_pi", "table6_pi_nfc"),
+)
+
+
+def _nfc_models_section(ev: Evaluation) -> list[str]:
+    """PI+NFC J and its reduction with the identified and with the exact NFC model."""
+    out = [
         "",
         "## PI+NFC: identified vs exact NFC model",
         "",
@@ -472,30 +497,30 @@ def calibration_markdown(ev: Evaluation, title: str = "Paper vs twin: Tables 4-6
         "target (+-10 points, identified) |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for label, table, pi_name, nfc_name in (
-        ("Table 5 tracking", TABLE5, "table5_pi", "table5_pi_nfc"),
-        ("Table 6 isolation", TABLE6, "table6_pi", "table6_pi_nfc"),
-    ):
+    experiments = {"Table 5": "Table 5 tracking", "Table 6": "Table 6 isolation"}
+    for short, table, pi_name, nfc_name in _NFC_PAIRS:
         pi, nfc = ev.cells[pi_name], ev.cells[nfc_name]
         paper = relative_reduction(table.pi_average, table.pi_nfc_average)
         red = relative_reduction(pi.j.average, nfc.j.average)
         red_exact = relative_reduction(pi.j.average, nfc.exact.average)
         out.append(
-            f"| {label} | {table.pi_nfc_average:.2f} | {nfc.j.average:.2f} | "
+            f"| {experiments[short]} | {table.pi_nfc_average:.2f} | {nfc.j.average:.2f} | "
             f"{nfc.exact.average:.2f} | {paper:.1f} % | {red:.1f} % | {red_exact:.1f} % | "
             f"{_verdict(abs(red - paper) <= REDUCTION_TARGET_POINTS)} |"
         )
-    out += [
+    return out
+
+
+def _tracking_errors_section(ev: Evaluation) -> list[str]:
+    """Max and RMS tracking errors of Tables 5 and 6, paper beside twin [deg/s]."""
+    out = [
         "",
         "Tracking errors (mean over runs) [deg/s]:",
         "",
         "| experiment | controller | paper max abs | twin max abs | paper rms | twin rms |",
         "|---|---|---|---|---|---|",
     ]
-    for label, table, pi_name, nfc_name in (
-        ("Table 5", TABLE5, "table5_pi", "table5_pi_nfc"),
-        ("Table 6", TABLE6, "table6_pi", "table6_pi_nfc"),
-    ):
+    for label, table, pi_name, nfc_name in _NFC_PAIRS:
         for variant, cell, pmax, prms in (
             ("PI", pi_name, table.pi_max_abs_error_deg_s, table.pi_rms_error_deg_s),
             ("PI+NFC", nfc_name, table.pi_nfc_max_abs_error_deg_s, table.pi_nfc_rms_error_deg_s),
@@ -505,8 +530,7 @@ def calibration_markdown(ev: Evaluation, title: str = "Paper vs twin: Tables 4-6
                 f"| {label} | {variant} | {pmax:.4f} | {r.mean_max_abs_error_deg_s:.4f} | "
                 f"{prms:.4f} | {r.mean_rms_error_deg_s:.4f} |"
             )
-    out += ["", "## Notes", ""] + _notes(ev) + [""]
-    return "\n".join(out)
+    return out
 
 
 def _notes(ev: Evaluation) -> list[str]:

@@ -25,7 +25,7 @@ from isp_twin.commands import (
     sweep,
 )
 from isp_twin.errors import IspTwinError
-from isp_twin.outputs import is_stdout, stdout_for_outputs
+from isp_twin.output.files import is_stdout, stdout_for_outputs
 
 __all__ = ["main", "build_parser"]
 

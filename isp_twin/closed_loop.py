@@ -147,21 +147,29 @@ class ClosedLoop:
         nfc_params: ParameterSet | None = None,
         compiled: bool | None = None,
     ):
-        from isp_twin.twin import Twin  # mujoco only where the twin lives
-
         if scenario.kind != "closed_loop":
             raise ScenarioError(
                 f"{scenario.source or scenario.name}: kind: '{scenario.kind}' cannot be run "
                 "closed loop (expected 'closed_loop')"
             )
+        self.scenario = scenario
+        nfc_params = self._load_models(scenario, params, nfc_params)
+        self.seed = scenario.seed if seed is None else int(seed)
+        self._build_plant(scenario)
+        self._build_blocks(scenario, nfc_params)
+        self._choose_path(compiled)
+        self.reset()
+
+    def _load_models(
+        self, scenario: Scenario, params: ParameterSet | None, nfc_params: ParameterSet | None
+    ) -> ParameterSet:
+        """The plant's parameters (`params`, `params_path`) and the NFC's model, returned."""
         if params is None:
             self.params_path: Path | None = scenario.parameters_path
             params = load_parameters(self.params_path)
         else:
             self.params_path = params.path
-        self.scenario = scenario
         self.params = params
-        self.seed = scenario.seed if seed is None else int(seed)
         if nfc_params is None:
             nfc_path = scenario.nfc_parameters_path
             nfc_params = params if nfc_path is None else load_parameters(nfc_path)
@@ -171,7 +179,13 @@ class ClosedLoop:
             if nfc_params is params
             else str(nfc_params.path or nfc_params.name or "given in code")
         )
-        self.twin = twin = Twin(params)
+        return nfc_params
+
+    def _build_plant(self, scenario: Scenario) -> None:
+        """The twin, the sample times and the turntable's targets."""
+        from isp_twin.twin import Twin  # mujoco only where the twin lives
+
+        self.twin = twin = Twin(self.params)
         dt = twin.dt
         #: Samples of the run (t_0 .. t_{n-1}).
         self.n = n = int(round(scenario.duration_s / dt)) + 1
@@ -180,6 +194,12 @@ class ClosedLoop:
         # Targets for t_1 .. t_n: step k drives the table to its angle at t_{k+1}.
         targets = np.stack([table_angles(motions[a], self.t + dt) for a in TABLE_JOINTS], axis=1)
         self._targets_array = targets
+        #: One row per sample (`CLOSED_LOOP_SIGNALS` layout), written as the run goes.
+        self.buffer = np.zeros((n, CLOSED_LOOP_SIGNALS.width))
+
+    def _build_blocks(self, scenario: Scenario, nfc_params: ParameterSet) -> None:
+        """Sensors, the inner rate loops, the outer followers and their settings."""
+        dt = self.twin.dt
         g = scenario.gyro
         self._gyro_model = g
         self.gyros: list[Gyro] = []
@@ -202,18 +222,18 @@ class ClosedLoop:
             a: v * DEG for a, v in scenario.initial_angles_deg.as_dict().items() if v != 0.0
         }
         self._bounds = [0.999 * scenario.controller.axis(a).bound_digits for a in INNER_AXES]
-        #: One row per sample (`CLOSED_LOOP_SIGNALS` layout), written as the run goes.
-        self.buffer = np.zeros((n, CLOSED_LOOP_SIGNALS.width))
-        self._kernel = _kernel_for(twin) if compiled is not False else None
+
+    def _choose_path(self, compiled: bool | None) -> None:
+        """The compiled kernel when asked for or possible, else the Python blocks."""
+        self._kernel = _kernel_for(self.twin) if compiled is not False else None
         if compiled and self._kernel is None:
             raise IspTwinError(
                 "closed loop: the compiled path needs numba and a plant without effects"
             )
         if self._kernel is not None:
-            self._twin_arrays = twin.arrays()
+            self._twin_arrays = self.twin.arrays()
         else:
-            self._targets = targets.tolist()  # plain floats for the Python loop
-        self.reset()
+            self._targets = self._targets_array.tolist()  # plain floats for the Python loop
 
     @property
     def compiled(self) -> bool:

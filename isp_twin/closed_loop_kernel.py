@@ -360,6 +360,8 @@ if _LIB is not None:
 
     # Compiled (or loaded from the cache) at import, not at the first run: a
     # Ctrl-C during numba's loading would leave its state inconsistent.
+    # One long function on purpose (tests/test_architecture.py LONG_FUNCTIONS):
+    # numba compiles it whole, and the per-sample state stays in locals.
     @numba.njit(
         numba.int64(
             *(numba.int64, numba.int64, numba.int64, numba.int64),

@@ -26,7 +26,7 @@ import numpy as np
 
 from isp_twin.errors import ParameterError
 from isp_twin.measured import MIN_SAMPLES, MeasuredData
-from isp_twin.open_loop import simulate_open_loop
+from isp_twin.open_loop import OpenLoopResponse, simulate_open_loop
 from isp_twin.parameters import ParameterSet
 from isp_twin.units import DEG
 from isp_twin.vocabulary import GIMBAL_AXES
@@ -200,12 +200,7 @@ def generate_openloop(
     Returns:
         `MeasuredData` with u in digits, SI rate and angle.
     """
-    if axis not in GIMBAL_AXES:
-        raise ParameterError(f"axis '{axis}' unknown; allowed: {', '.join(GIMBAL_AXES)}")
-    if not math.isclose(dt, params.sample_time_s, rel_tol=1e-9):
-        raise ParameterError(
-            f"dt {dt} s differs from the parameter set's sample_time_s {params.sample_time_s} s"
-        )
+    _check_axis_and_period(params, axis, dt)
     check_excitation(
         amplitude_digits=amplitude_digits,
         freq_hz=freq_hz,
@@ -216,17 +211,7 @@ def generate_openloop(
         resolver_lsb_deg=resolver_lsb_deg,
         seed=seed,
     )
-    if freq_hz >= 0.5 / dt:
-        raise ParameterError(
-            f"freq_hz: {freq_hz} is not below the Nyquist frequency {0.5 / dt:g} Hz of dt {dt} s"
-        )
-    if _stop_rad(axis) is not None and abs(initial_angle_deg) > INNER_STOP_DEG:
-        raise ParameterError(
-            f"initial_angle_deg: {initial_angle_deg} is beyond the {axis} stop "
-            f"(|angle| <= {INNER_STOP_DEG:g} deg)"
-        )
-    if engine not in ("fast", "twin"):
-        raise ParameterError(f"engine '{engine}' unknown; allowed: fast, twin")
+    _check_run_limits(axis, freq_hz, dt, initial_angle_deg, engine)
     # The open-loop experiment of Fig. 2 with Eq. 7's input; both engines
     # apply the parameter file's effects.
     response = simulate_open_loop(
@@ -240,6 +225,46 @@ def generate_openloop(
         angle_limit_rad=_stop_rad(axis),
         engine=engine,
     )
+    return _as_measured(response, name, dt, gyro_noise_deg_s, resolver_lsb_deg, seed)
+
+
+def _check_axis_and_period(params: ParameterSet, axis: str, dt: float) -> None:
+    """A known axis, and dt the parameters' sample time (they are per sample)."""
+    if axis not in GIMBAL_AXES:
+        raise ParameterError(f"axis '{axis}' unknown; allowed: {', '.join(GIMBAL_AXES)}")
+    if not math.isclose(dt, params.sample_time_s, rel_tol=1e-9):
+        raise ParameterError(
+            f"dt {dt} s differs from the parameter set's sample_time_s {params.sample_time_s} s"
+        )
+
+
+def _check_run_limits(
+    axis: str, freq_hz: float, dt: float, initial_angle_deg: float, engine: str
+) -> None:
+    """Below Nyquist, inside the axis's stops, a known engine."""
+    if freq_hz >= 0.5 / dt:
+        raise ParameterError(
+            f"freq_hz: {freq_hz} is not below the Nyquist frequency {0.5 / dt:g} Hz of dt {dt} s"
+        )
+    if _stop_rad(axis) is not None and abs(initial_angle_deg) > INNER_STOP_DEG:
+        raise ParameterError(
+            f"initial_angle_deg: {initial_angle_deg} is beyond the {axis} stop "
+            f"(|angle| <= {INNER_STOP_DEG:g} deg)"
+        )
+    if engine not in ("fast", "twin"):
+        raise ParameterError(f"engine '{engine}' unknown; allowed: fast, twin")
+
+
+def _as_measured(
+    response: OpenLoopResponse,
+    name: str,
+    dt: float,
+    gyro_noise_deg_s: float,
+    resolver_lsb_deg: float,
+    seed: int,
+) -> MeasuredData:
+    """The run as the sensors report it: the gyro's white noise on the rate, the
+    resolver's quantization of the angle."""
     t, u, omega, angle = response.t, response.u, response.omega, response.angle
     rng = np.random.default_rng(seed)
     if gyro_noise_deg_s > 0:

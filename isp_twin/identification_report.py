@@ -12,7 +12,6 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from isp_twin.atomic import atomic_path, write_text_atomic
 from isp_twin.identification import (
     RATE_FIELDS,
     IdentificationResult,
@@ -20,6 +19,7 @@ from isp_twin.identification import (
     simulate_data,
 )
 from isp_twin.measured import MeasuredData
+from isp_twin.output.files import staged_path, write_text_atomic
 from isp_twin.parameters import PAPER_FIELDS, AxisParams
 from isp_twin.units import DEG
 from isp_twin.verdict import FitVerdict, fit_verdict, noise_floor_of
@@ -231,7 +231,7 @@ def _plot(result: IdentificationResult, d: MeasuredData, path: Path, title: str)
     ax2.set_ylabel("measured - model [deg/s]")
     ax2.set_xlabel("t [s]")
     fig.tight_layout()
-    with atomic_path(path) as tmp:
+    with staged_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)
 

@@ -56,9 +56,9 @@ from pathlib import Path
 
 import numpy as np
 
-from isp_twin.atomic import atomic_path
 from isp_twin.errors import DataError, ResourceNotFound, nearest
 from isp_twin.input_files import load_yaml, read_text
+from isp_twin.output.files import staged_path
 from isp_twin.units import DEG
 
 __all__ = [
@@ -543,7 +543,7 @@ def save_measured(data: MeasuredData, path: str | Path) -> Path:
     """Write `data` as a canonical CSV (t s, u, omega deg/s, theta deg), atomically."""
     path = Path(path)
     table = np.column_stack([data.t, data.u, data.omega / DEG, data.angle / DEG])
-    with atomic_path(path) as tmp:
+    with staged_path(path) as tmp:
         np.savetxt(tmp, table, delimiter=",", header=",".join(SIGNALS), comments="", fmt="%.10g")
     return path
 

@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import ParameterError, nearest
+from isp_twin.output.files import write_text_atomic
 from isp_twin.units import DEG
 from isp_twin.vocabulary import GIMBAL_AXES, REGIMES
 

@@ -289,8 +289,6 @@ def _cells(value: Any, where: str) -> tuple[str, ...]:
 
 
 def _parse_knob(name: str, raw: Any, where: str) -> Knob:
-    from isp_twin.scenario import check_scenario_value
-
     _fields(raw, where, _KNOB_KEYS, _REQUIRED, "a mapping of keys")
     if ("range" in raw) == ("choices" in raw):
         raise RigError(f"{where}: give either 'range' (a number) or 'choices' (a name)")
@@ -298,6 +296,37 @@ def _parse_knob(name: str, raw: Any, where: str) -> Knob:
         if not isinstance(raw[key], str):
             raise RigError(f"{where}.{key}: expected text, got {raw[key]!r}")
     keys = _names(raw["keys"], f"{where}.keys")
+    value, when = _checked_value_and_when(raw, keys, where)
+    span = choices = None
+    if "range" in raw:
+        span = _checked_range(raw["range"], value, where)
+    else:
+        choices = _names(raw["choices"], f"{where}.choices")
+        if value not in choices:
+            raise RigError(f"{where}.value: {value!r} is not one of its choices {list(choices)}")
+    provenance, cells = _checked_provenance(raw, where)
+    fit = None
+    if "fit" in raw:
+        fit = _parse_fit(raw["fit"], f"{where}.fit", keys, cells, span)
+    return Knob(
+        name=name,
+        value=value,
+        unit=raw["unit"],
+        keys=keys,
+        when=when,
+        range=span,
+        choices=choices,
+        provenance=provenance,
+        cells=cells,
+        fit=fit,
+        note=raw["note"],
+    )
+
+
+def _checked_value_and_when(raw: Mapping, keys: tuple[str, ...], where: str) -> tuple[Any, dict]:
+    """The knob's value, checked as each scenario key it sets, and its `when` conditions."""
+    from isp_twin.scenario import check_scenario_value
+
     value = raw["value"]
     try:
         for key in keys:
@@ -311,23 +340,26 @@ def _parse_knob(name: str, raw: Any, where: str) -> Knob:
         when = {k: check_scenario_value(str(k), v, f"{where}.when.{k}") for k, v in when.items()}
     except ScenarioError as exc:
         raise RigError(str(exc)) from None
-    span = choices = None
-    if "range" in raw:
-        r = raw["range"]
-        if not isinstance(r, list) or len(r) != 2:
-            raise RigError(f"{where}.range: expected [low, high], got {r!r}")
-        span = (_number(r[0], f"{where}.range"), _number(r[1], f"{where}.range"))
-        if span[0] > span[1]:
-            raise RigError(f"{where}.range: low {span[0]:g} is above high {span[1]:g}")
-        v = _number(value, f"{where}.value")
-        if not span[0] <= v <= span[1]:
-            raise RigError(
-                f"{where}.value: {v:g} lies outside its plausible range [{span[0]:g}, {span[1]:g}]"
-            )
-    else:
-        choices = _names(raw["choices"], f"{where}.choices")
-        if value not in choices:
-            raise RigError(f"{where}.value: {value!r} is not one of its choices {list(choices)}")
+    return value, when
+
+
+def _checked_range(r: Any, value: Any, where: str) -> tuple[float, float]:
+    """A numeric knob's plausible range [low, high], its value inside it."""
+    if not isinstance(r, list) or len(r) != 2:
+        raise RigError(f"{where}.range: expected [low, high], got {r!r}")
+    span = (_number(r[0], f"{where}.range"), _number(r[1], f"{where}.range"))
+    if span[0] > span[1]:
+        raise RigError(f"{where}.range: low {span[0]:g} is above high {span[1]:g}")
+    v = _number(value, f"{where}.value")
+    if not span[0] <= v <= span[1]:
+        raise RigError(
+            f"{where}.value: {v:g} lies outside its plausible range [{span[0]:g}, {span[1]:g}]"
+        )
+    return span
+
+
+def _checked_provenance(raw: Mapping, where: str) -> tuple[str, tuple[str, ...]]:
+    """The knob's provenance, and the paper cells that shaped it (calibrated knobs only)."""
     provenance = raw["provenance"]
     if provenance not in PROVENANCES:
         raise RigError(
@@ -346,22 +378,7 @@ def _parse_knob(name: str, raw: Any, where: str) -> Knob:
         raise RigError(
             f"{where}.{key}: only a calibrated knob has {key} (provenance: {provenance})"
         )
-    fit = None
-    if "fit" in raw:
-        fit = _parse_fit(raw["fit"], f"{where}.fit", keys, cells, span)
-    return Knob(
-        name=name,
-        value=value,
-        unit=raw["unit"],
-        keys=keys,
-        when=when,
-        range=span,
-        choices=choices,
-        provenance=provenance,
-        cells=cells,
-        fit=fit,
-        note=raw["note"],
-    )
+    return provenance, cells
 
 
 def _parse_fit(raw: Any, where: str, keys, cells, span) -> KnobFit:

@@ -252,6 +252,30 @@ class TwinArrays:
     friction_table: np.ndarray
 
 
+def _joint_id(m: mujoco.MjModel, name: str, path: Path) -> int:
+    """A joint's id; a missing one names the file and the nearest joint name."""
+    jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+    if jid < 0:
+        names = [m.joint(i).name for i in range(m.njnt)]
+        raise ParameterError(f"{path}: no joint '{name}'{nearest(name, names)}")
+    return jid
+
+
+def _sensor_adr(m: mujoco.MjModel, name: str, path: Path) -> int:
+    """Where a sensor's values start in ``sensordata``."""
+    sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
+    if sid < 0:
+        raise ParameterError(f"{path}: no sensor '{name}'")
+    return int(m.sensor_adr[sid])
+
+
+def _actuator_id(m: mujoco.MjModel, name: str, path: Path) -> int:
+    aid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+    if aid < 0:
+        raise ParameterError(f"{path}: no actuator '{name}'")
+    return aid
+
+
 class Twin:
     """The simulated ISP: MuJoCo physics plus Eq. 5 friction from a parameter set.
 
@@ -291,31 +315,25 @@ class Twin:
         self.data = mujoco.MjData(self.model)
         self.params = params
         self.dt = float(self.model.opt.timestep)
+        dofs = self._find_gimbal_slots(path)
+        self._find_table_and_sensors(path)
+        self._build_axes(params, dofs)
+        self._build_effects(params)
+        self._bind_buffers()
+        self.reset()
+
+    def _find_gimbal_slots(self, path: Path) -> list[int]:
+        """Joint ids, and the gimbals' dof and motor slots; returns the gimbals' dofs.
+
+        Raises:
+            ParameterError: a joint or motor is missing, or the gimbals are not
+                consecutive hinges with their motors in the same order.
+        """
         m = self.model
-
-        def joint(name: str) -> int:
-            jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
-            if jid < 0:
-                names = [m.joint(i).name for i in range(m.njnt)]
-                raise ParameterError(f"{path}: no joint '{name}'{nearest(name, names)}")
-            return jid
-
-        def sensor_adr(name: str) -> int:
-            sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
-            if sid < 0:
-                raise ParameterError(f"{path}: no sensor '{name}'")
-            return int(m.sensor_adr[sid])
-
-        def actuator(name: str) -> int:
-            aid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
-            if aid < 0:
-                raise ParameterError(f"{path}: no actuator '{name}'")
-            return aid
-
-        self._jid = {n: joint(n) for n in TABLE_JOINTS + GIMBALS}
+        self._jid = {n: _joint_id(m, n, path) for n in TABLE_JOINTS + GIMBALS}
         dofs = [int(m.jnt_dofadr[self._jid[n]]) for n in GIMBALS]
         qadr = [int(m.jnt_qposadr[self._jid[n]]) for n in GIMBALS]
-        motors = [actuator(f"motor_{n}") for n in GIMBALS]
+        motors = [_actuator_id(m, f"motor_{n}", path) for n in GIMBALS]
         # The hot loop works on contiguous slices in dof order ("slots"): the
         # gimbal hinges are consecutive dofs, their motors consecutive
         # actuators in the same order (as in the shipped model).
@@ -336,12 +354,21 @@ class Twin:
         self._slot = np.array([d - lo for d in dofs])
         self._gimbal_of_slot = [int(np.flatnonzero(self._slot == s)[0]) for s in range(4)]
         self._slots = self._slot.tolist()
+        return dofs
+
+    def _find_table_and_sensors(self, path: Path) -> None:
+        """The turntable's joints and actuators, the gyros, the joint ranges.
+
+        Raises:
+            ParameterError: an actuator, sensor or the ``gyro_table`` site is missing.
+        """
+        m = self.model
         self._table_q = np.array([int(m.jnt_qposadr[self._jid[n]]) for n in TABLE_JOINTS])
         self._table_v = np.array([int(m.jnt_dofadr[self._jid[n]]) for n in TABLE_JOINTS])
-        self._table_act = np.array([actuator(n) for n in TABLE_JOINTS])
-        self._gyro_az = sensor_adr("gyro_inner_az") + 2  # z: the inner_az joint axis
-        self._gyro_el = sensor_adr("gyro_inner_el") + 1  # y: the inner_el joint axis
-        self._gyro_table = sensor_adr("gyro_table")
+        self._table_act = np.array([_actuator_id(m, n, path) for n in TABLE_JOINTS])
+        self._gyro_az = _sensor_adr(m, "gyro_inner_az", path) + 2  # z: the inner_az joint axis
+        self._gyro_el = _sensor_adr(m, "gyro_inner_el", path) + 1  # y: the inner_el joint axis
+        self._gyro_table = _sensor_adr(m, "gyro_table", path)
         sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "gyro_table")
         if sid < 0:
             raise ParameterError(f"{path}: no site 'gyro_table'")
@@ -349,6 +376,9 @@ class Twin:
         self._inner_jids = np.array([self._jid[n] for n in INNER_AXES])
         self._ranges = {n: tuple(m.jnt_range[self._jid[n]]) for n in TABLE_JOINTS + GIMBALS}
 
+    def _build_axes(self, params: ParameterSet, dofs: list[int]) -> None:
+        """`PhysicalAxis` per gimbal, and the per-slot friction table of the hot loop."""
+        m = self.model
         # Effective inertia about each gimbal axis at qpos0 (dof_M0: the
         # diagonal of the joint-space inertia), so the twin and Eq. 6 agree.
         # The twin steps by explicit Euler (docs/axis_model.md); when its step
@@ -382,6 +412,9 @@ class Twin:
             )
         self._tab = tab
         self._inertia = [self.axes[GIMBALS[g]].inertia for g in self._gimbal_of_slot]
+
+    def _build_effects(self, params: ParameterSet) -> None:
+        """Each slot's effects, sorted by the hook they override (command, acceleration, gyro)."""
         effects = [
             [make_effect(spec, self.dt) for spec in params.axis(GIMBALS[g]).effects]
             for g in self._gimbal_of_slot
@@ -398,8 +431,11 @@ class Twin:
         self._any_cmd = any(self._cmd_fx)
         self._any_acc = any(self._acc_fx)
         self._any_meas = any(self._meas_fx)
-        # Views into MuJoCo's buffers (stable for the lifetime of model/data).
-        d = self.data
+
+    def _bind_buffers(self) -> None:
+        """Views into MuJoCo's buffers (stable for the lifetime of model/data)."""
+        m, d = self.model, self.data
+        lo, mlo = self._lo, self._mlo
         self._qpos_g = d.qpos[lo : lo + 4]
         self._qvel_g = d.qvel[lo : lo + 4]
         self._fl_g = m.dof_frictionloss[lo : lo + 4]
@@ -407,7 +443,6 @@ class Twin:
         self._ctrl_g = d.ctrl[mlo : mlo + 4]
         self._constraint_g = d.qfrc_constraint[lo : lo + 4]
         self._force_g = d.actuator_force[mlo : mlo + 4]
-        self.reset()
 
     # ------------------------------------------------------------ internals
 

@@ -32,6 +32,7 @@ every knob with a `range` is drawn, where its `when` conditions hold.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -465,21 +466,58 @@ def run_uncertainty(
     Raises:
         ScenarioError: no draws, or a drawn setting the scenario loader rejects.
     """
-    from isp_twin.sweep.execute import execute
-    from isp_twin.sweep.store import ResultStore
+    knobs = _checked_knobs(scenario, n_draws, knobs)
+    path = Path(params_path or scenario.parameters_path)
+    runs = uncertainty_runs(scenario, n_draws, seed, path, knobs, axis, first_seed)
+    seeds = range(scenario.seed, scenario.seed + oat_seeds)
+    extra = oat_runs(scenario, path, knobs, seeds, axis) if oat else []
+    outcomes = _execute_runs(runs + extra, jobs, on_progress)
+    j_of = functools.partial(_j_of, axis=axis)
+    ok_draws, jp, jn = _paired_j(scenario, runs, outcomes, n_draws, j_of)
+    red = 100.0 * (jp - jn) / jp
+    inputs = _drawn_inputs([runs[2 * d] for d in ok_draws], knobs)
+    nominal, oat_rows = _oat_table(extra, outcomes, knobs, axis, j_of) if oat else (None, [])
+    return UncertaintyResult(
+        scenario=scenario.name,
+        axis=axis,
+        seed=seed,
+        inputs=inputs,
+        j_pi=jp,
+        j_nfc=jn,
+        reduction=red,
+        draws=n_draws,
+        failed=n_draws - len(ok_draws),
+        sensitivity=sensitivity(inputs, (jp, jn, red)),
+        paper_reduction=PAPER_REDUCTION.get(scenario.name),
+        oat=tuple(oat_rows),
+        oat_nominal=nominal,
+    )
 
+
+def _checked_knobs(
+    scenario: Scenario, n_draws: int, knobs: Sequence[KnobRange] | None
+) -> tuple[KnobRange, ...]:
+    """The knob ranges to draw (default: the scenario's rig file), those that apply.
+
+    Raises:
+        ScenarioError: fewer than 2 draws, or not a closed-loop scenario.
+    """
     if n_draws < 2:
         raise ScenarioError(f"--uncertainty needs at least 2 draws, got {n_draws}")
     if scenario.kind != "closed_loop":
         raise ScenarioError(f"{scenario.source}: kind: uncertainty needs a closed_loop scenario")
     if knobs is None:
         knobs = rig_knob_ranges(load_rig(scenario.rig_path))
-    knobs = _applicable(scenario, knobs)
-    path = Path(params_path or scenario.parameters_path)
-    runs = uncertainty_runs(scenario, n_draws, seed, path, knobs, axis, first_seed)
-    seeds = range(scenario.seed, scenario.seed + oat_seeds)
-    extra = oat_runs(scenario, path, knobs, seeds, axis) if oat else []
-    everything = runs + extra
+    return _applicable(scenario, knobs)
+
+
+def _execute_runs(
+    runs: Sequence[RunSpec], jobs: int, on_progress: Callable[[int, int], None] | None
+) -> dict[str, RunOutcome]:
+    """Run everything on the sweep machinery (a store in memory): run key -> outcome."""
+    from isp_twin.sweep.execute import execute
+    from isp_twin.sweep.store import ResultStore
+
     with ResultStore(":memory:") as store:
         progress = None
         if on_progress is not None:
@@ -487,13 +525,35 @@ def run_uncertainty(
             def progress(p) -> None:
                 on_progress(p.done, p.total)
 
-        execute(everything, store, workers=jobs, in_process=jobs <= 1, on_progress=progress)
-        outcomes = store.outcomes([r.key for r in everything])
+        execute(runs, store, workers=jobs, in_process=jobs <= 1, on_progress=progress)
+        return store.outcomes([r.key for r in runs])
 
-    def j_of(o: RunOutcome) -> float | None:
-        m = o.metrics.get(axis) if o.status == "ok" else None
-        return None if m is None else float(m["isolation_percent"])
 
+def _drawn_inputs(pi_runs: Sequence[RunSpec], knobs: Sequence[KnobRange]) -> dict[str, np.ndarray]:
+    """Each drawn input (rig knob, plant parameter) over the runs, shape (draws,)."""
+    inputs = {k.name: np.array([float(r.knobs[k.name]) for r in pi_runs]) for k in knobs}
+    inputs.update({k: np.array(v) for k, v in _plant_inputs(pi_runs).items()})
+    return inputs
+
+
+def _j_of(o: RunOutcome, axis: str) -> float | None:
+    """J of Eq. 10 [%] on `axis`, None when the run failed."""
+    m = o.metrics.get(axis) if o.status == "ok" else None
+    return None if m is None else float(m["isolation_percent"])
+
+
+def _paired_j(
+    scenario: Scenario,
+    runs: Sequence[RunSpec],
+    outcomes: Mapping[str, RunOutcome],
+    n_draws: int,
+    j_of: Callable[[RunOutcome], float | None],
+) -> tuple[list[int], np.ndarray, np.ndarray]:
+    """The draws whose PI and PI+NFC runs both ran, with their J [%] (PI, PI+NFC).
+
+    Raises:
+        ScenarioError: fewer than 2 draws ran (the message has the failures' reasons).
+    """
     ok_draws, j_pi, j_nfc = [], [], []
     for d in range(n_draws):
         a, b = j_of(outcomes[runs[2 * d].key]), j_of(outcomes[runs[2 * d + 1].key])
@@ -507,31 +567,7 @@ def run_uncertainty(
             f"{scenario.name}: fewer than 2 draws ran ({n_draws - len(ok_draws)} failed: "
             f"{'; '.join(sorted(str(r) for r in reasons))[:300]})"
         )
-    jp, jn = np.array(j_pi), np.array(j_nfc)
-    red = 100.0 * (jp - jn) / jp
-    pi_runs = [runs[2 * d] for d in ok_draws]
-    inputs = {k.name: np.array([float(r.knobs[k.name]) for r in pi_runs]) for k in knobs}
-    inputs.update({k: np.array(v) for k, v in _plant_inputs(pi_runs).items()})
-    rows = sensitivity(inputs, (jp, jn, red))
-    oat_rows: list[OatRow] = []
-    nominal = None
-    if oat:
-        nominal, oat_rows = _oat_table(extra, outcomes, knobs, axis, j_of)
-    return UncertaintyResult(
-        scenario=scenario.name,
-        axis=axis,
-        seed=seed,
-        inputs=inputs,
-        j_pi=jp,
-        j_nfc=jn,
-        reduction=red,
-        draws=n_draws,
-        failed=n_draws - len(ok_draws),
-        sensitivity=rows,
-        paper_reduction=PAPER_REDUCTION.get(scenario.name),
-        oat=tuple(oat_rows),
-        oat_nominal=nominal,
-    )
+    return ok_draws, np.array(j_pi), np.array(j_nfc)
 
 
 def _oat_table(runs, outcomes, knobs, axis, j_of):
@@ -630,7 +666,7 @@ def plot_uncertainty(res: UncertaintyResult, path: str | Path, top: int = 12) ->
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from isp_twin.atomic import atomic_path
+    from isp_twin.output.files import staged_path
 
     fig, axes = plt.subplots(1, 3, figsize=(15.0, 4.8))
     ax = axes[0]
@@ -675,7 +711,7 @@ def plot_uncertainty(res: UncertaintyResult, path: str | Path, top: int = 12) ->
         f"{res.scenario}: {res.draws - res.failed} draws of plant (Table 2 ci95) and rig settings"
     )
     fig.tight_layout()
-    with atomic_path(path) as tmp:
+    with staged_path(path) as tmp:
         fig.savefig(tmp, dpi=100, format="png")
     plt.close(fig)
     return Path(path)

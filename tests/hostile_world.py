@@ -169,7 +169,8 @@ LAZY_MODULES = (
     "isp_twin.measured",
     "isp_twin.open_loop",
     "isp_twin.parameters",
-    "isp_twin.recording",
+    "isp_twin.output.readback",
+    "isp_twin.output.recording",
     "isp_twin.scenario",
     "isp_twin.twin",
 )

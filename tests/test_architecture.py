@@ -2,7 +2,8 @@
 
 * `mujoco` is imported only by the twin (twin.py) and by the compiled closed
   loop (closed_loop_kernel.py), which calls MuJoCo's library itself;
-* `rerun` only by the recorder (recording.py);
+* `rerun` only by the output package (isp_twin/output/: the recorder, its
+  layout and its read-back);
 * `isp_twin.control` (the controller blocks) imports neither the twin nor the
   scenario nor the closed loop: it is plain math, testable alone;
 * `isp_twin.friction` (Eq. 5, compiled by numba as written) uses only the
@@ -15,6 +16,9 @@
 * effects are looked up only through `isp_twin.effects.effect_class` (no
   ``EFFECTS[...]`` outside the registry), and YAML is read only by
   `isp_twin.input_files.load_yaml`.
+
+And every function stays under 60 lines (an orchestrator reads as named
+stages) except those on a commented allow-list that can only shrink.
 
 An import counts wherever it is written (module top, inside a function, a
 relative import, ``from isp_twin import twin``, ``importlib.import_module``).
@@ -31,10 +35,11 @@ from isp_twin.vocabulary import GIMBAL_AXES, REGIMES, TABLE_JOINTS
 
 PACKAGE = Path(__file__).resolve().parents[1] / "isp_twin"
 
-#: Third-party module -> the files (relative to the repository) allowed to import it.
+#: Third-party module -> the files (relative to the repository) allowed to import it;
+#: a name ending in "/" allows every file below that folder.
 CONFINED = {
     "mujoco": {"isp_twin/twin.py", "isp_twin/closed_loop_kernel.py"},
-    "rerun": {"isp_twin/recording.py"},
+    "rerun": {"isp_twin/output/"},
 }
 #: Package directory -> modules none of its files may import.
 FORBIDDEN = {
@@ -99,13 +104,17 @@ def _within(name: str, module: str) -> bool:
     return name == module or name.startswith(module + ".")
 
 
+def _at_home(rel: str, homes: set[str]) -> bool:
+    return any(rel == home or (home.endswith("/") and rel.startswith(home)) for home in homes)
+
+
 def violations(rel: str, source: str) -> list[str]:
     """The dependency rules this file breaks, one line each ("file:line: why")."""
     broken = []
     for line, name in imported_modules(source, rel):
         where = f"{rel}:{line}"
         for module, homes in CONFINED.items():
-            if _within(name, module) and rel not in homes:
+            if _within(name, module) and not _at_home(rel, homes):
                 broken.append(f"{where}: imports {module} (only {', '.join(sorted(homes))})")
         for folder, banned in FORBIDDEN.items():
             if rel.startswith(folder):
@@ -144,6 +153,9 @@ def test_the_rules_name_files_that_exist():
         ("isp_twin/metrics.py", "import importlib\nimportlib.import_module('mujoco')\n"),
         ("isp_twin/diagnosis/report.py", "import rerun.blueprint as rrb\n"),
         ("isp_twin/twin.py", "__import__('rerun')\n"),
+        ("isp_twin/commands/run.py", "import rerun as rr\n"),
+        ("isp_twin/results.py", "from rerun.chunk import RrdReader\n"),
+        ("isp_twin/outputs/layout.py", "import rerun.blueprint as rrb\n"),  # not the package
         ("isp_twin/control/pi.py", "from isp_twin.twin import Twin\n"),
         ("isp_twin/control/pi.py", "from isp_twin import scenario\n"),
         ("isp_twin/control/pi.py", "from .. import closed_loop\n"),
@@ -161,7 +173,9 @@ def test_a_planted_violation_is_caught(rel, source):
     "rel, source",
     [
         ("isp_twin/twin.py", "import mujoco\n"),
-        ("isp_twin/recording.py", "import rerun as rr\nfrom rerun.chunk import RrdReader\n"),
+        ("isp_twin/output/recording.py", "import rerun as rr\n"),
+        ("isp_twin/output/readback.py", "from rerun.chunk import RrdReader\n"),
+        ("isp_twin/output/layout.py", "import rerun.blueprint as rrb\n"),
         ("isp_twin/control/pi.py", "from isp_twin.units import DEG\nfrom . import bound\n"),
         ("isp_twin/control/rate_loop.py", "from isp_twin.control.nfc import FrictionFeedForward\n"),
         ("isp_twin/closed_loop.py", "from isp_twin.scenario import Scenario\n"),
@@ -291,3 +305,105 @@ def test_yaml_is_read_by_one_loader():
     assert yaml_reads("isp_twin/sweep/design.py", "raw = yaml.safe_load(path.read_text())\n")
     assert yaml_reads("isp_twin/rig.py", "import yaml\nraw = yaml.load(t, Loader=L)\n")
     assert yaml_reads("isp_twin/parameters.py", "text = yaml.safe_dump(raw)\n") == []
+
+
+# --------------------------------------------------------------------------
+# Function length: an orchestrator reads as named stages, each under ~60 lines.
+
+MAX_FUNCTION_LINES = 60
+#: Functions allowed to be longer ("file::qualified name"), each with why. The
+#: list only shrinks: an entry that is gone or has come under the limit fails
+#: `test_the_long_function_allow_list_only_shrinks`, so it is struck when split.
+LONG_FUNCTIONS = {
+    # Compiled kernels, kept whole: numba compiles each as one function, its
+    # state in locals (a split would pass it through arrays), and each is
+    # checked bit for bit against a plain Python form.
+    "isp_twin/closed_loop_kernel.py::_advance",
+    "isp_twin/substep_model.py::_advance",
+    "isp_twin/substep_model.py::simulate_substeps",
+    # The fast model's batched loop over samples (Eq. 6): the hot path of
+    # identification, one friction-law evaluation per sample (issue 11, item 1).
+    "isp_twin/axis_model.py::simulate",
+    # The reference simulator's integrator: one loop over samples, sub-steps
+    # and events whose closures share its local state (docs/reference_simulator.md).
+    "isp_twin/reference/axis.py::simulate",
+    # Identification and diagnosis: being rewritten in stages (status enum,
+    # per-iteration log) by their own issue; split there, not here.
+    "isp_twin/identification.py::identify",
+    "isp_twin/identification.py::equation_error_estimate",
+    "isp_twin/identification_report.py::write_report",
+    "isp_twin/identification_report.py::result_json",
+    "isp_twin/diagnosis/search.py::diagnose",
+    "isp_twin/diagnosis/search.py::Diagnosis.to_json",
+    "isp_twin/diagnosis/candidates.py::fit_candidates",
+    "isp_twin/diagnosis/fit.py::lm_steps",
+    "isp_twin/diagnosis/report.py::write_report",
+    "isp_twin/diagnosis/residual.py::analyse",
+}
+
+
+def function_lengths(source: str, rel: str) -> dict[str, int]:
+    """Every function's length in lines (decorators included), by ``file::qualified name``.
+
+    Functions nested in functions, classes or module-level blocks (``if``,
+    ``try``) count on their own and as part of their parent.
+    """
+    lengths = {}
+
+    def visit(node: ast.AST, prefix: str) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef):
+                start = min([child.lineno] + [d.lineno for d in child.decorator_list])
+                lengths[f"{rel}::{prefix}{child.name}"] = child.end_lineno - start + 1
+                visit(child, f"{prefix}{child.name}.")
+            elif isinstance(child, ast.ClassDef):
+                visit(child, f"{prefix}{child.name}.")
+            else:
+                visit(child, prefix)
+
+    visit(ast.parse(source, filename=rel), "")
+    return lengths
+
+
+def package_function_lengths() -> dict[str, int]:
+    root = PACKAGE.parent
+    lengths = {}
+    for path in package_files():
+        lengths.update(function_lengths(path.read_text(), path.relative_to(root).as_posix()))
+    return lengths
+
+
+def test_functions_stay_under_60_lines_outside_the_allow_list():
+    long = {
+        name: n
+        for name, n in package_function_lengths().items()
+        if n > MAX_FUNCTION_LINES and name not in LONG_FUNCTIONS
+    }
+    assert not long, "split into named stages:\n" + "\n".join(
+        f"{name}: {n} lines" for name, n in sorted(long.items())
+    )
+
+
+def test_the_long_function_allow_list_only_shrinks():
+    lengths = package_function_lengths()
+    stale = sorted(n for n in LONG_FUNCTIONS if lengths.get(n, 0) <= MAX_FUNCTION_LINES)
+    assert not stale, "gone or now short; strike from LONG_FUNCTIONS:\n" + "\n".join(stale)
+
+
+def test_function_lengths_count_nested_and_decorated_functions():
+    source = (
+        "if True:\n"
+        "    @decorate\n"
+        "    def kernel(x):\n"
+        "        def inner():\n"
+        "            pass\n"
+        "        return x\n"
+        "class A:\n"
+        "    def method(self):\n"
+        "        pass\n"
+    )
+    assert function_lengths(source, "m.py") == {
+        "m.py::kernel": 5,
+        "m.py::kernel.inner": 2,
+        "m.py::A.method": 2,
+    }

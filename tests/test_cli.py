@@ -92,7 +92,7 @@ def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
     import sys
     import time
 
-    from isp_twin.recording import verify_recording
+    from isp_twin.output.readback import verify_recording
 
     scenario = tmp_path / "long.yaml"
     scenario.write_text(

@@ -210,13 +210,13 @@ def test_campaign_command_rejects_an_open_loop_scenario_and_an_axis_without_j(ca
 
 
 def test_the_run_records_exactly_the_signal_table_and_the_recorder_styles_each(short_run):
-    from isp_twin.recording import _SIGNALS
+    from isp_twin.output.entities import SIGNAL_STYLES
     from isp_twin.signals import CLOSED_LOOP_SIGNALS, INNER_SIGNALS, OUTER_SIGNALS
 
     assert tuple(short_run.signals) == CLOSED_LOOP_SIGNALS.signals
     assert tuple(short_run.joint_angles) == CLOSED_LOOP_SIGNALS.joints
     for sig in INNER_SIGNALS + OUTER_SIGNALS:
-        assert sig.name in _SIGNALS
+        assert sig.name in SIGNAL_STYLES
     # the block of an axis holds its signals in table order
     cols = CLOSED_LOOP_SIGNALS.signals[CLOSED_LOOP_SIGNALS.block("outer_el")]
     assert cols == ("outer_el/follow_error", "outer_el/command")

@@ -17,7 +17,7 @@ from hostile_world import CLOSED_LOOP, OPEN_LOOP, good_table, write_csv
 
 from isp_twin.cli import main
 from isp_twin.errors import OutputError
-from isp_twin.outputs import staged_path, transaction
+from isp_twin.output.files import staged_path, transaction
 from isp_twin.resources import default_parameters_path
 
 REPO = Path(__file__).resolve().parents[1]

@@ -13,19 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from isp_twin import recording
 from isp_twin.errors import DataError, ResourceNotFound
-from isp_twin.recording import (
-    JOINTS,
-    joint_quaternions,
-    line_of_sight,
-    read_series,
-    read_text,
-    read_views,
-    record_residuals,
-    record_run,
-    verify_recording,
-)
+from isp_twin.output import readback, recording, rerun_writer
+from isp_twin.output.kinematics import JOINTS, joint_quaternions, line_of_sight
+from isp_twin.output.readback import read_series, read_text, read_views, verify_recording
+from isp_twin.output.recording import record_residuals, record_run
 from isp_twin.results import RunResult
 from isp_twin.units import DEG
 
@@ -367,7 +359,7 @@ def _free_port() -> int:
 def test_connect_streams_to_a_viewer_proxy_and_still_saves(run, tmp_path):
     port = _free_port()
     proxy = subprocess.Popen(
-        [recording._rerun_executable(), "--serve-grpc", "--port", str(port)],
+        [readback.rerun_executable(), "--serve-grpc", "--port", str(port)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         # The `rerun` script starts the real binary as a child: own group, killed whole.
@@ -397,7 +389,7 @@ def test_missing_recording_is_reported_by_name(tmp_path):
 
 
 def test_unreachable_viewer_is_reported_and_the_file_is_still_saved(run, tmp_path, monkeypatch):
-    monkeypatch.setattr(recording, "_VIEWER_TIMEOUT_S", 0.5)
+    monkeypatch.setattr(rerun_writer, "_VIEWER_TIMEOUT_S", 0.5)
     url = f"rerun+http://127.0.0.1:{_free_port()}/proxy"  # nothing listens there
     target = tmp_path / "offline.rrd"
     with pytest.raises(ResourceNotFound, match="offline.rrd"):

@@ -8,7 +8,6 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
@@ -20,7 +19,7 @@ from isp_twin.commands.progress import working
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, FIXED_SIDE
 from isp_twin.errors import ParameterError
 from isp_twin.measured import check_sample_period, load_measured, unique_names
-from isp_twin.outputs import check_outputs, is_stdout, transaction
+from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
 from isp_twin.parameters import load_parameters, save_parameters
 from isp_twin.units import DEG
 from isp_twin.vocabulary import GIMBAL_AXES
@@ -49,6 +48,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--axis", default="inner_az", choices=GIMBAL_AXES, help="the axis the data belong to"
     )
     add_data_options(p)
+    _add_search_options(p)
+    _add_output_options(p)
+    p.add_argument("--seed", type=int, default=0, help="seed of the base model's global search")
+    p.add_argument(
+        "--base-search",
+        action="store_true",
+        help="fit the base model with identify's global method first (and the winner again "
+        "with its effect held) instead of starting from the file's rate parameters",
+    )
+    p.add_argument("--quiet", action="store_true", help="print only the verdict line")
+    p.set_defaults(execute=execute)
+
+
+def _add_search_options(p: argparse.ArgumentParser) -> None:
+    """Which effects are tried, on which half-plane, how many, how hard."""
     p.add_argument(
         "--candidates",
         default=None,
@@ -70,6 +84,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=DEFAULT_ITERATIONS,
         help="Levenberg-Marquardt iterations per refit",
     )
+
+
+def _add_output_options(p: argparse.ArgumentParser) -> None:
+    """The JSON result, the report folder and the residual recording."""
     p.add_argument(
         "--json", type=Path, default=None, metavar="PATH", help="write the result as JSON"
     )
@@ -88,19 +106,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="Rerun recording of the residuals (default: REPORT_DIR/residuals.rrd)",
     )
     p.add_argument("--no-recording", action="store_true", help="do not write a Rerun recording")
-    p.add_argument("--seed", type=int, default=0, help="seed of the base model's global search")
-    p.add_argument(
-        "--base-search",
-        action="store_true",
-        help="fit the base model with identify's global method first (and the winner again "
-        "with its effect held) instead of starting from the file's rate parameters",
-    )
-    p.add_argument("--quiet", action="store_true", help="print only the verdict line")
-    p.set_defaults(execute=execute)
 
 
 def execute(args: argparse.Namespace) -> int:
-    from isp_twin.diagnosis.report import write_recording, write_report
     from isp_twin.diagnosis.search import diagnose
 
     if args.max_rounds < 1:
@@ -108,32 +116,10 @@ def execute(args: argparse.Namespace) -> int:
     if args.iterations < 1:
         raise ParameterError(f"--iterations must be >= 1, got {args.iterations}")
     check_initial_angle(args)
-    report_dir = Path(
-        args.report or (args.out.parent if args.out is not None else Path("diagnosis_report"))
-    )
-    prefix = f"{args.out.stem}_" if args.out is not None else ""
-    report_path = report_dir / f"{prefix}diagnosis.md"
-    recording = None
-    if not args.no_recording:
-        recording = args.recording or report_dir / f"{prefix}residuals.rrd"
-    inputs = [*args.data, *args.holdout, args.params, *([args.describe] if args.describe else [])]
-    check_outputs(
-        {
-            "--out": args.out,
-            "--report": report_path,
-            "--recording": recording,
-            "--json": args.json,
-        },
-        inputs,
-    )
-
+    report_path, recording = _checked_outputs(args)
     params = load_parameters(args.params)
-    mapping = mapping_from_args(args)
-    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.holdout]])
-    check_sample_budget(runs, args)
+    runs = _load_runs(args, params)
     train, holdout = runs[: len(args.data)], runs[len(args.data) :]
-    for line in check_sample_period(runs, params.sample_time_s, str(params.path or params.name)):
-        print(line)
     candidates = None
     if args.candidates:
         candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
@@ -154,14 +140,58 @@ def execute(args: argparse.Namespace) -> int:
     result = diag.to_json()
     result["sample_period_s"] = {d.name: d.dt for d in runs}
     result.setdefault("units", {})["sample_period_s"] = "s"
+    say = _teller(args.quiet)
+    _print_diagnosis(diag, result, args.axis, len(train), say)
+    _write_outputs(args, diag, result, report_path, recording, say)
+    return 0
 
-    def say(*a, **k):  # --quiet silences the chatter, not the verdict
-        if not args.quiet:
+
+def _teller(quiet: bool):
+    """`print` unless --quiet: it silences the chatter, not the verdict."""
+
+    def say(*a, **k):
+        if not quiet:
             builtins.print(*a, **k)
 
-    say(
-        f"diagnosis of {args.axis} on {len(train)} run(s); held out: {', '.join(diag.holdout_names)}"
+    return say
+
+
+def _checked_outputs(args: argparse.Namespace) -> tuple[Path, Path | None]:
+    """The report's and the recording's paths, every destination checked up front."""
+    report_dir = Path(
+        args.report or (args.out.parent if args.out is not None else Path("diagnosis_report"))
     )
+    prefix = f"{args.out.stem}_" if args.out is not None else ""
+    report_path = report_dir / f"{prefix}diagnosis.md"
+    recording = None
+    if not args.no_recording:
+        recording = args.recording or report_dir / f"{prefix}residuals.rrd"
+    inputs = [*args.data, *args.holdout, args.params, *([args.describe] if args.describe else [])]
+    check_outputs(
+        {
+            "--out": args.out,
+            "--report": report_path,
+            "--recording": recording,
+            "--json": args.json,
+        },
+        inputs,
+    )
+    return report_path, recording
+
+
+def _load_runs(args: argparse.Namespace, params):
+    """The training then held-out runs, names unique, sample periods checked."""
+    mapping = mapping_from_args(args)
+    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.holdout]])
+    check_sample_budget(runs, args)
+    for line in check_sample_period(runs, params.sample_time_s, str(params.path or params.name)):
+        print(line)
+    return runs
+
+
+def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
+    """Each round's candidates and verdicts, the accepted fits, the errors, the verdict."""
+    say(f"diagnosis of {axis} on {n_train} run(s); held out: {', '.join(diag.holdout_names)}")
     for i, r in enumerate(diag.rounds, 1):
         say(
             f"round {i}: {'no missing effect found' if r.selected == 'none' else 'selected ' + r.selected}"
@@ -194,6 +224,11 @@ def execute(args: argparse.Namespace) -> int:
                 "they are the ones written)"
             )
 
+
+def _write_outputs(args, diag, result: dict, report_path: Path, recording, say) -> None:
+    """Parameters, report, recording and JSON as one transaction; then where they went."""
+    from isp_twin.diagnosis.report import write_recording, write_report
+
     with transaction():
         if args.out is not None:
             out_set = replace(diag.params_out, name=args.out.stem, path=None)
@@ -211,7 +246,6 @@ def execute(args: argparse.Namespace) -> int:
         say(f"recording written to {recording}  (open it with: rerun {recording})")
     if args.json is not None and not is_stdout(args.json):
         say(f"result written to {args.json}")
-    return 0
 
 
 def _json_default(x):

@@ -14,7 +14,7 @@ from isp_twin.experiment import (
     paper_set,
 )
 from isp_twin.measured import save_measured
-from isp_twin.outputs import check_folder, check_outputs, transaction
+from isp_twin.output.files import check_folder, check_outputs, transaction
 from isp_twin.parameters import load_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.vocabulary import GIMBAL_AXES

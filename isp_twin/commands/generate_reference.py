@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import argparse
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import ParameterError, nearest
 from isp_twin.measured import MeasuredData, save_measured
+from isp_twin.output.files import write_text_atomic
 
 __all__ = ["add_reference_options", "execute_reference"]
 

@@ -8,7 +8,6 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
@@ -20,7 +19,7 @@ from isp_twin.errors import ParameterError
 from isp_twin.identification import SIDE_SOURCES, Settings, identify, to_axis_params
 from isp_twin.identification_report import identification_verdict, result_json, write_report
 from isp_twin.measured import check_sample_period, load_measured, unique_names
-from isp_twin.outputs import check_outputs, transaction
+from isp_twin.output.files import check_outputs, transaction, write_text_atomic
 from isp_twin.parameters import load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG
@@ -54,6 +53,21 @@ def add_parser(sub) -> None:
         "--axis", default="inner_az", choices=GIMBAL_AXES, help="the axis the data belong to"
     )
     add_data_options(p)
+    _add_search_options(p)
+    p.add_argument(
+        "--report",
+        type=Path,
+        default=None,
+        help="Markdown report (default: OUT with suffix _report.md; PNGs beside it)",
+    )
+    p.add_argument("--no-report", action="store_true")
+    p.add_argument("--json", type=Path, default=None, help="JSON summary")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(execute=execute)
+
+
+def _add_search_options(p) -> None:
+    """The half-plane source and the search budget."""
     p.add_argument(
         "--side",
         dest="side_source",
@@ -80,33 +94,10 @@ def add_parser(sub) -> None:
         metavar="DEG_S",
         help="|rate| counted as at rest [deg/s]",
     )
-    p.add_argument(
-        "--report",
-        type=Path,
-        default=None,
-        help="Markdown report (default: OUT with suffix _report.md; PNGs beside it)",
-    )
-    p.add_argument("--no-report", action="store_true")
-    p.add_argument("--json", type=Path, default=None, help="JSON summary")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
-    p.set_defaults(execute=execute)
 
 
 def execute(args) -> int:
-    if args.generations < 0:
-        raise ParameterError(f"--generations must be >= 0, got {args.generations}")
-    for option, value in (
-        ("--population", args.population),
-        ("--refine-evaluations", args.refine_evaluations),
-        ("--min-regime-samples", args.min_regime_samples),
-    ):
-        if value < 1:
-            raise ParameterError(f"{option} must be >= 1, got {value}")
-    if args.seed < 0:
-        raise ParameterError(f"--seed must be >= 0, got {args.seed}")
-    if not math.isfinite(args.rest_rate) or args.rest_rate < 0:
-        raise ParameterError(f"--rest-rate must be a finite number >= 0, got {args.rest_rate}")
-    check_initial_angle(args)
+    _check_options(args)
     prior_path = args.prior or default_parameters_path()
     inputs = [*args.data, *args.validate, prior_path, *([args.describe] if args.describe else [])]
     check_outputs({"--out": args.out}, inputs)  # the report's default name derives from it
@@ -114,48 +105,9 @@ def execute(args) -> int:
     if not args.no_report:
         report = args.report or args.out.with_name(f"{args.out.stem}_report.md")
     check_outputs({"--out": args.out, "--report": report, "--json": args.json}, inputs)
-
-    mapping = mapping_from_args(args)
-    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.validate]])
-    check_sample_budget(runs, args)
-    train, validation = runs[: len(args.data)], runs[len(args.data) :]
-    prior_set = load_parameters(prior_path)
-    prior = prior_set.axis(args.axis)
-    periods = check_sample_period(
-        train + validation, prior_set.sample_time_s, str(prior_set.path or prior_set.name)
-    )
-    if not args.quiet:
-        for line in periods:
-            print(line)
-    settings = Settings(
-        seed=args.seed,
-        generations=args.generations,
-        population=args.population,
-        refine=not args.no_refine,
-        refine_evaluations=args.refine_evaluations,
-        min_regime_samples=args.min_regime_samples,
-        rest_rate_deg_s=args.rest_rate,
-        side_source=args.side_source,
-        prior_in_search=args.prior_in_search,
-        integration=integration_from_args(args),
-    )
+    train, validation, prior_set, prior = _load_runs(args, prior_path)
     show = not args.quiet and sys.stderr.isatty()
-
-    def progress(stage: str, step: int, cost: float) -> None:
-        if show:
-            label = (
-                "generation {}: best RMS"
-                if stage == "search"
-                else "refinement, {} simulated sets: RMS"
-            )
-            print(
-                f"\r{label.format(step)} {cost / DEG:.5g} deg/s   ",
-                end="",
-                file=sys.stderr,
-                flush=True,
-            )
-
-    result = identify(train, prior, settings, progress)
+    result = identify(train, prior, _settings(args), _progress_printer(show))
     if show:
         print(file=sys.stderr)
     names = ", ".join(d.name for d in train)
@@ -188,3 +140,77 @@ def execute(args) -> int:
         for line in verdict.lines():
             print(line)
     return 0
+
+
+def _check_options(args) -> None:
+    """The search options' ranges and the initial angle (before any file is read).
+
+    Raises:
+        ParameterError: an option out of its range, naming it.
+    """
+    if args.generations < 0:
+        raise ParameterError(f"--generations must be >= 0, got {args.generations}")
+    for option, value in (
+        ("--population", args.population),
+        ("--refine-evaluations", args.refine_evaluations),
+        ("--min-regime-samples", args.min_regime_samples),
+    ):
+        if value < 1:
+            raise ParameterError(f"{option} must be >= 1, got {value}")
+    if args.seed < 0:
+        raise ParameterError(f"--seed must be >= 0, got {args.seed}")
+    if not math.isfinite(args.rest_rate) or args.rest_rate < 0:
+        raise ParameterError(f"--rest-rate must be a finite number >= 0, got {args.rest_rate}")
+    check_initial_angle(args)
+
+
+def _load_runs(args, prior_path: Path):
+    """(training runs, validation runs, prior set, its axis), sample periods checked."""
+    mapping = mapping_from_args(args)
+    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.validate]])
+    check_sample_budget(runs, args)
+    train, validation = runs[: len(args.data)], runs[len(args.data) :]
+    prior_set = load_parameters(prior_path)
+    prior = prior_set.axis(args.axis)
+    periods = check_sample_period(
+        train + validation, prior_set.sample_time_s, str(prior_set.path or prior_set.name)
+    )
+    if not args.quiet:
+        for line in periods:
+            print(line)
+    return train, validation, prior_set, prior
+
+
+def _settings(args) -> Settings:
+    return Settings(
+        seed=args.seed,
+        generations=args.generations,
+        population=args.population,
+        refine=not args.no_refine,
+        refine_evaluations=args.refine_evaluations,
+        min_regime_samples=args.min_regime_samples,
+        rest_rate_deg_s=args.rest_rate,
+        side_source=args.side_source,
+        prior_in_search=args.prior_in_search,
+        integration=integration_from_args(args),
+    )
+
+
+def _progress_printer(show: bool):
+    """The search's progress callback: one overwritten line on a terminal."""
+
+    def progress(stage: str, step: int, cost: float) -> None:
+        if show:
+            label = (
+                "generation {}: best RMS"
+                if stage == "search"
+                else "refinement, {} simulated sets: RMS"
+            )
+            print(
+                f"\r{label.format(step)} {cost / DEG:.5g} deg/s   ",
+                end="",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    return progress

@@ -7,10 +7,9 @@ import json
 import os
 from pathlib import Path
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.commands.progress import working
 from isp_twin.errors import ScenarioError
-from isp_twin.outputs import check_outputs, transaction
+from isp_twin.output.files import check_outputs, transaction, write_text_atomic
 
 __all__ = ["add_parser", "execute", "add_common_options", "run_evaluation"]
 

@@ -9,9 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import ScenarioError
-from isp_twin.outputs import check_outputs, is_stdout, transaction
+from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
 from isp_twin.parameters import load_parameters
 from isp_twin.resources import find_scenario
 from isp_twin.results import RunResult
@@ -105,21 +104,14 @@ def execute(args: argparse.Namespace) -> int:
     name = scenario.name or Path(scenario.source or args.scenario).stem
     recording = None
     if not args.no_recording:
-        from isp_twin.recording import default_recording_path
+        from isp_twin.output.recording import default_recording_path
 
         recording = args.recording or default_recording_path(name)
     check_outputs(
         {"--json": args.json, "--recording": recording},
         inputs=[scenario.source, params_path],
     )
-    # The simulator (MuJoCo) is imported before the header: once it is printed
-    # the run starts at once (and Ctrl-C from then on keeps what ran).
-    if scenario.kind == "closed_loop":
-        import isp_twin.closed_loop
-
-        isp_twin.closed_loop.load_kernel()  # numba and the compiled loop, if available
-    elif args.engine == "twin":
-        import isp_twin.twin  # noqa: F401
+    _load_simulator(scenario, args.engine)
     print(f"scenario {name}  ({scenario.source})")
     print(f"parameters {params_path}  seed {seed}")
     if scenario.kind == "closed_loop":
@@ -131,22 +123,37 @@ def execute(args: argparse.Namespace) -> int:
         result, payload = _run_closed_loop(scenario, params, params_path, name, seed)
     # A run stopped by Ctrl-C still writes what it has, and says so.
     payload["interrupted"] = result.interrupted
+    _write_outputs(args, result, payload, recording)
+    if result.interrupted:
+        print("interrupted: the outputs hold the run up to the interruption", file=sys.stderr)
+        return 130
+    return 0
 
+
+def _load_simulator(scenario, engine: str) -> None:
+    """Import the simulator (MuJoCo, numba) before the header: once the header is
+    printed the run starts at once (and Ctrl-C from then on keeps what ran)."""
+    if scenario.kind == "closed_loop":
+        import isp_twin.closed_loop
+
+        isp_twin.closed_loop.load_kernel()  # numba and the compiled loop, if available
+    elif engine == "twin":
+        import isp_twin.twin  # noqa: F401
+
+
+def _write_outputs(args: argparse.Namespace, result, payload: dict, recording) -> None:
+    """The JSON and the recording, as one transaction; then say where they went."""
     with transaction():
         if args.json is not None:
             write_text_atomic(args.json, json.dumps(payload, indent=2) + "\n")
         if recording is not None:
-            from isp_twin.recording import record_run
+            from isp_twin.output.recording import record_run
 
             record_run(result, recording, spawn=args.spawn, connect=args.connect)
     if args.json is not None and not is_stdout(args.json):
         print(f"metrics written to {args.json}")
     if recording is not None:
         print(f"recording written to {recording}  (open it with: rerun {recording})")
-    if result.interrupted:
-        print("interrupted: the outputs hold the run up to the interruption", file=sys.stderr)
-        return 130
-    return 0
 
 
 def _run_closed_loop(scenario, params, params_path, name, seed):
@@ -176,7 +183,7 @@ def _run_closed_loop(scenario, params, params_path, name, seed):
 
 
 def _run_open_loop(scenario, params, params_path, name, seed, engine):
-    from isp_twin.open_loop import PAPER_FIG2, analyse_open_loop, simulate_open_loop
+    from isp_twin.open_loop import analyse_open_loop, simulate_open_loop
 
     ol = scenario.open_loop
     response = simulate_open_loop(
@@ -191,29 +198,7 @@ def _run_open_loop(scenario, params, params_path, name, seed, engine):
     )
     skip = min(2.0 / ol.command.freq_hz, 0.5 * scenario.duration_s)
     figures = analyse_open_loop(response.t, response.omega, response.angle, skip_s=skip)
-    print(f"\nopen loop, {ol.axis}, engine {engine}: after {skip:g} s of start-up")
-    print(f"{'regime':<8} {'peak [deg/s]':>13}")
-    for regime, peak in figures.peak_deg_s.items():
-        text = "not visited" if np.isnan(peak) else f"{peak:13.3f}"
-        print(f"{regime:<8} {text:>13}")
-    print(f"\n{'figure':<28} {'twin':>10} {'paper':>10}")
-    rows = (
-        ("peak positive [deg/s]", figures.peak_positive_deg_s, PAPER_FIG2["peak_positive_deg_s"]),
-        ("peak negative [deg/s]", figures.peak_negative_deg_s, PAPER_FIG2["peak_negative_deg_s"]),
-        (
-            "dead zone, Y > 0 [ms]",
-            figures.mean_dead_zone_ms(SIDE_R),
-            PAPER_FIG2["dead_zone_right_ms"],
-        ),
-        (
-            "dead zone, Y <= 0 [ms]",
-            figures.mean_dead_zone_ms(SIDE_L),
-            PAPER_FIG2["dead_zone_left_ms"],
-        ),
-    )
-    for label, ours, paper in rows:
-        text = "none" if np.isnan(ours) else f"{ours:10.2f}"
-        print(f"{label:<28} {text:>10} {paper:>10.2f}")
+    _print_open_loop(figures, ol.axis, engine, skip)
     result = RunResult(
         scenario=name,
         scenario_text=scenario.text,
@@ -239,6 +224,35 @@ def _run_open_loop(scenario, params, params_path, name, seed, engine):
         "units": OPEN_LOOP_UNITS,
     }
     return result, payload
+
+
+def _print_open_loop(figures, axis: str, engine: str, skip: float) -> None:
+    """The open-loop figures beside the paper's Fig. 2 values."""
+    from isp_twin.open_loop import PAPER_FIG2
+
+    print(f"\nopen loop, {axis}, engine {engine}: after {skip:g} s of start-up")
+    print(f"{'regime':<8} {'peak [deg/s]':>13}")
+    for regime, peak in figures.peak_deg_s.items():
+        text = "not visited" if np.isnan(peak) else f"{peak:13.3f}"
+        print(f"{regime:<8} {text:>13}")
+    print(f"\n{'figure':<28} {'twin':>10} {'paper':>10}")
+    rows = (
+        ("peak positive [deg/s]", figures.peak_positive_deg_s, PAPER_FIG2["peak_positive_deg_s"]),
+        ("peak negative [deg/s]", figures.peak_negative_deg_s, PAPER_FIG2["peak_negative_deg_s"]),
+        (
+            "dead zone, Y > 0 [ms]",
+            figures.mean_dead_zone_ms(SIDE_R),
+            PAPER_FIG2["dead_zone_right_ms"],
+        ),
+        (
+            "dead zone, Y <= 0 [ms]",
+            figures.mean_dead_zone_ms(SIDE_L),
+            PAPER_FIG2["dead_zone_left_ms"],
+        ),
+    )
+    for label, ours, paper in rows:
+        text = "none" if np.isnan(ours) else f"{ours:10.2f}"
+        print(f"{label:<28} {text:>10} {paper:>10.2f}")
 
 
 def _json_ready(obj):

@@ -8,8 +8,8 @@ import sys
 import time
 from pathlib import Path
 
-from isp_twin.atomic import write_text_atomic
 from isp_twin.errors import ScenarioError
+from isp_twin.output.files import write_text_atomic
 
 __all__ = ["add_parser", "execute"]
 

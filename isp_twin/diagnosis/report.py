@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from isp_twin.atomic import atomic_path, write_text_atomic
 from isp_twin.diagnosis.candidates import BASELINE
 from isp_twin.diagnosis.search import Diagnosis
 from isp_twin.diagnosis.selection import BLOCK, MIN_GAIN, MIN_SHARE, Z_MIN
+from isp_twin.output.files import staged_path, write_text_atomic
 from isp_twin.units import DEG
 
 __all__ = ["residual_series", "write_recording", "write_report"]
@@ -74,7 +74,7 @@ def _figure(diag: Diagnosis, path: Path) -> None:
     axes[1, 2].legend()
     fig.suptitle(f"diagnosis of {diag.axis}: residual before and after")
     fig.tight_layout()
-    with atomic_path(path) as tmp:
+    with staged_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=90)
     plt.close(fig)
 
@@ -156,7 +156,7 @@ def write_report(diag: Diagnosis, path: Path, params_out: Path | None = None) ->
 
 def write_recording(diag: Diagnosis, path: Path) -> Path:
     """Rerun recording of the training residuals before and after."""
-    from isp_twin.recording import record_residuals
+    from isp_twin.output.recording import record_residuals
 
     s = residual_series(diag)
     j = diag.to_json()

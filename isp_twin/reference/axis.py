@@ -199,6 +199,8 @@ def simulate(
         ParameterError: bad dt/substeps or an unknown effect object.
         SimulationDiverged: non-finite or runaway rate.
     """
+    # One long function (tests/test_architecture.py LONG_FUNCTIONS): the loop
+    # over samples, sub-steps and events and its closures share local state.
     if dt <= 0.0 or substeps < 1:
         raise ParameterError(
             f"reference simulate: needs dt > 0 and substeps >= 1, got {dt}, {substeps}"

@@ -157,58 +157,15 @@ def _design_run(
     amplitude_scale = 1.0
     limit = MAX_ANGLE_DEG * _DEG
     for _ in range(MAX_RUN_TRIES):
-        peak = rng.uniform(0.8, 1.0) * COMMAND_SCALE_DIGITS * amplitude_scale
-        offset = 0.0
-        if kind == "cosine":
-            frac = rng.uniform(-0.15, 0.15)
-            offset = frac * peak / (1.0 + abs(frac))
-            amp, freq = peak - abs(offset), min(_log(rng, 0.2, 2.0) * scale, MAX_FREQ_HZ[kind])
-        elif kind == "multisine":
-            amp, freq = peak, min(_log(rng, 0.2, 1.0) * scale, MAX_FREQ_HZ[kind])
-        else:
-            amp, freq = peak, min(_log(rng, 2.0, 8.0) * scale, MAX_FREQ_HZ[kind])
-        ex = Excitation(kind, amp, freq, offset, 0.0, n, dt, seed=int(rng.integers(2**31)))
+        ex = _draw_excitation(kind, rng, n, dt, scale, amplitude_scale)
         u = ex.command()
-        # The start angle: coarse probes (2 steps per sample) from 0, from
-        # minus the centre of that travel and half-way; the one that visits the
-        # least-visited regime most wins. (Centring alone can fail: with
-        # asymmetric friction the motion can drift away from 0 on either side.)
-        coarse = tuple(
-            replace(e, delay_s=round(e.delay_s / (dt / 2)) * (dt / 2))
-            if isinstance(e, InputDelay)
-            else e
-            for e in drawn.effects
-        )
-        best, start = -2.0, 0.0
-        span = centre = 0.0
-        for i in range(3):
-            candidate = (0.0, -centre, -0.5 * centre)[i]
-            probe = simulate(
-                drawn.axis,
-                u,
-                coarse,
-                drawn.sensors,
-                dt=dt,
-                substeps=2,
-                theta0_rad=candidate,
-                seed=None,
-            )
-            if i == 0:
-                span = float(np.ptp(probe.angle))
-                centre = 0.5 * float(probe.angle.max() + probe.angle.min())
-                if span > 1.6 * limit:
-                    break
-            score = float(probe.moving_per_regime().min())
-            if np.max(np.abs(probe.angle)) >= limit:
-                score = -1.0
-            if score > best:
-                best, start = score, candidate
+        span, start = _probe_start(drawn, u, dt, limit)
         if span > 1.6 * limit:
             # Faster commands shorten the travel, up to the frequency cap;
             # past it, smaller ones (a 100 Hz "Eq. 7 run" is no
             # identification experiment, and its rate is not smooth at the
             # sample rate, which the noise-floor estimate assumes).
-            if freq * span / (1.2 * limit) <= MAX_FREQ_HZ[kind]:
+            if ex.freq_hz * span / (1.2 * limit) <= MAX_FREQ_HZ[kind]:
                 scale *= span / (1.2 * limit)
             else:
                 amplitude_scale *= max(0.3, 1.2 * limit / span)
@@ -229,6 +186,65 @@ def _design_run(
         if np.count_nonzero(run.regime >= 0) < 4 * MIN_MOVING:
             scale *= 0.6
     return None
+
+
+def _draw_excitation(
+    kind: str, rng: np.random.Generator, n: int, dt: float, scale: float, amplitude_scale: float
+) -> Excitation:
+    """A random command of `kind`: peak, offset (cosine), frequency band, seed."""
+    peak = rng.uniform(0.8, 1.0) * COMMAND_SCALE_DIGITS * amplitude_scale
+    offset = 0.0
+    if kind == "cosine":
+        frac = rng.uniform(-0.15, 0.15)
+        offset = frac * peak / (1.0 + abs(frac))
+        amp, freq = peak - abs(offset), min(_log(rng, 0.2, 2.0) * scale, MAX_FREQ_HZ[kind])
+    elif kind == "multisine":
+        amp, freq = peak, min(_log(rng, 0.2, 1.0) * scale, MAX_FREQ_HZ[kind])
+    else:
+        amp, freq = peak, min(_log(rng, 2.0, 8.0) * scale, MAX_FREQ_HZ[kind])
+    return Excitation(kind, amp, freq, offset, 0.0, n, dt, seed=int(rng.integers(2**31)))
+
+
+def _probe_start(drawn: DrawnAxis, u: np.ndarray, dt: float, limit: float) -> tuple[float, float]:
+    """(travel from 0 [rad], the start angle [rad]) from coarse, noise-free probes.
+
+    The start angle: coarse probes (2 steps per sample) from 0, from minus the
+    centre of that travel and half-way; the one that visits the least-visited
+    regime most wins. (Centring alone can fail: with asymmetric friction the
+    motion can drift away from 0 on either side.) A travel over 1.6 `limit`
+    stops the probing (the caller changes the command).
+    """
+    coarse = tuple(
+        replace(e, delay_s=round(e.delay_s / (dt / 2)) * (dt / 2))
+        if isinstance(e, InputDelay)
+        else e
+        for e in drawn.effects
+    )
+    best, start = -2.0, 0.0
+    span = centre = 0.0
+    for i in range(3):
+        candidate = (0.0, -centre, -0.5 * centre)[i]
+        probe = simulate(
+            drawn.axis,
+            u,
+            coarse,
+            drawn.sensors,
+            dt=dt,
+            substeps=2,
+            theta0_rad=candidate,
+            seed=None,
+        )
+        if i == 0:
+            span = float(np.ptp(probe.angle))
+            centre = 0.5 * float(probe.angle.max() + probe.angle.min())
+            if span > 1.6 * limit:
+                break
+        score = float(probe.moving_per_regime().min())
+        if np.max(np.abs(probe.angle)) >= limit:
+            score = -1.0
+        if score > best:
+            best, start = score, candidate
+    return span, start
 
 
 def _footprint(

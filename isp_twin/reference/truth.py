@@ -74,22 +74,7 @@ def truth_record(
         "sample_time_s": dt,
         "integration_step_s": dt / substeps,
         "regime_order": list(REGIME_NAMES),
-        "physical": {
-            "inertia_kg_m2": axis.inertia_kg_m2,
-            "viscous_nm_s_rad": axis.viscous_nm_s,
-            "motor_gain_nm_per_digit": axis.motor_gain_nm_per_digit,
-            "time_constant_s": axis.time_constant_s,
-            "regimes": {
-                name: {
-                    "static_nm": r.static_nm,
-                    "coulomb_nm": r.coulomb_nm,
-                    "alpha_s_rad": r.alpha_s_rad,
-                    "viscous_scale": r.viscous_scale,
-                    "gain_scale": r.gain_scale,
-                }
-                for name, r in zip(REGIME_NAMES, axis.regimes)
-            },
-        },
+        "physical": _physical(axis),
         "rate_form": {
             "units": "pole 1, gain rad/s per digit per sample, static/coulomb rad/s per "
             "sample, alpha s/rad, zoh_factor 1",
@@ -97,20 +82,7 @@ def truth_record(
             "sample (exact for point-sampled rate while sliding; see docs/reference_simulator.md)",
             "regimes": rf,
         },
-        "paper_form": {
-            "units": "a 1, bKe (deg/s)/digit per sample, bTs and bTc deg/s per sample, "
-            "alpha 1/(deg/s)",
-            "regimes": {
-                name: {
-                    "a": v["pole"],
-                    "bKe": v["gain"] / _DEG,
-                    "bTs": v["static"] / _DEG,
-                    "bTc": v["coulomb"] / _DEG,
-                    "alpha": v["alpha"] * _DEG,
-                }
-                for name, v in rf.items()
-            },
-        },
+        "paper_form": _paper_form(rf),
         "effects": [
             {"name": e.name, "params": e.truth(axis.inertia_kg_m2), "physical": _fields(e)}
             for e in effects
@@ -122,6 +94,43 @@ def truth_record(
             "resolver_bits": sensors.resolver_bits,
             "resolver_lsb_deg": sensors.resolver_lsb_rad / _DEG,
             "resolver_noise_deg": sensors.resolver_noise_rad / _DEG,
+        },
+    }
+
+
+def _physical(axis: Axis) -> dict:
+    """The axis in SI: inertia, viscous, motor gain, each regime's friction and scales."""
+    return {
+        "inertia_kg_m2": axis.inertia_kg_m2,
+        "viscous_nm_s_rad": axis.viscous_nm_s,
+        "motor_gain_nm_per_digit": axis.motor_gain_nm_per_digit,
+        "time_constant_s": axis.time_constant_s,
+        "regimes": {
+            name: {
+                "static_nm": r.static_nm,
+                "coulomb_nm": r.coulomb_nm,
+                "alpha_s_rad": r.alpha_s_rad,
+                "viscous_scale": r.viscous_scale,
+                "gain_scale": r.gain_scale,
+            }
+            for name, r in zip(REGIME_NAMES, axis.regimes)
+        },
+    }
+
+
+def _paper_form(rf: dict[str, dict[str, float]]) -> dict:
+    """The rate form in the paper's units (Table 2: deg/s per sample, 1/(deg/s))."""
+    return {
+        "units": "a 1, bKe (deg/s)/digit per sample, bTs and bTc deg/s per sample, alpha 1/(deg/s)",
+        "regimes": {
+            name: {
+                "a": v["pole"],
+                "bKe": v["gain"] / _DEG,
+                "bTs": v["static"] / _DEG,
+                "bTc": v["coulomb"] / _DEG,
+                "alpha": v["alpha"] * _DEG,
+            }
+            for name, v in rf.items()
         },
     }
 

@@ -49,7 +49,7 @@ import itertools
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -386,12 +386,53 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
             names the sweep file and the key path.
         ResourceNotFound: the scenario or parameter file does not exist.
     """
-    from isp_twin.input_files import load_yaml
-
     src = Path(source) if not str(source).startswith("<") else None
-    top = f"{source}:"
     raw = {} if raw is None else raw
-    _mapping(raw, top, _TOP_KEYS)
+    _mapping(raw, f"{source}:", _TOP_KEYS)
+    where = f"{source}: "
+    name, base = _base_scenario(raw, source, src)
+    axis = raw.get("axis", "inner_az")
+    if axis not in INNER_AXES:
+        raise _err(
+            f"{where}axis",
+            f"{axis!r} is not allowed{nearest(str(axis), INNER_AXES)}; choose one of "
+            f"{', '.join(INNER_AXES)}",
+        )
+    params_path = _parameters_path(raw, base, src, where)
+    design = _Design(
+        seeds=_seeds(raw.get("seeds"), base.seed, f"{where}seeds"),
+        cases=_cases(raw["cases"], f"{where}cases") if "cases" in raw else [{}],
+        grid={
+            str(k): _values(v, str(k), f"{where}grid.{k}")
+            for k, v in _mapping(raw.get("grid", {}), f"{where}grid").items()
+        },
+        randoms=_random_draws(raw["random"], f"{where}random") if "random" in raw else [{}],
+    )
+    if "uncertainty" in raw:
+        design = _with_uncertainty(design, raw["uncertainty"], params_path, f"{where}uncertainty")
+    _check_design(design, source)
+    knob_names = (["label"] if "cases" in raw else []) + list(design.grid)
+    knob_names += list(design.randoms[0]) + (["draw"] if design.draws != [None] else [])
+    runs = _expand_runs(design, base, params_path, axis, source)
+    return Sweep(name=name, source=src, axis=axis, knob_names=tuple(knob_names), runs=tuple(runs))
+
+
+@dataclass(frozen=True)
+class _Design:
+    """A sweep's design points before expansion: every run is one of each list's entries."""
+
+    seeds: list[int]
+    cases: list[dict]
+    grid: dict[str, list]
+    randoms: list[dict]
+    #: Parameter draws (None: the file's own values), their source and seed.
+    draws: list[int | None] = field(default_factory=lambda: [None])
+    params_raw: Mapping = field(default_factory=dict)
+    uncertainty_seed: int = 0
+
+
+def _base_scenario(raw: Mapping, source: str | Path, src: Path | None) -> tuple[str, Scenario]:
+    """The sweep's name and its base scenario (a closed-loop one, found beside the sweep)."""
     where = f"{source}: "
     if "scenario" not in raw:
         raise _err(f"{source}", "missing key 'scenario' (the base scenario)")
@@ -412,13 +453,11 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
         raise _err(
             f"{where}scenario", f"'{scen_ref}' is kind {base.kind}; a sweep runs closed_loop"
         )
-    axis = raw.get("axis", "inner_az")
-    if axis not in INNER_AXES:
-        raise _err(
-            f"{where}axis",
-            f"{axis!r} is not allowed{nearest(str(axis), INNER_AXES)}; choose one of "
-            f"{', '.join(INNER_AXES)}",
-        )
+    return name, base
+
+
+def _parameters_path(raw: Mapping, base: Scenario, src: Path | None, where: str) -> Path:
+    """The sweep's parameter file (its ``parameters`` key, else the scenario's), absolute."""
     if "parameters" in raw:
         if not isinstance(raw["parameters"], str):
             raise _err(f"{where}parameters", f"expected a file name, got {raw['parameters']!r}")
@@ -428,62 +467,74 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
             raise type(exc)(f"{where}parameters: {exc}") from None
     else:
         params_path = base.parameters_path
-    params_path = params_path.resolve()
-    seeds = _seeds(raw.get("seeds"), base.seed, f"{where}seeds")
-    cases = _cases(raw["cases"], f"{where}cases") if "cases" in raw else [{}]
-    grid_raw = _mapping(raw.get("grid", {}), f"{where}grid")
-    grid = {str(k): _values(v, str(k), f"{where}grid.{k}") for k, v in grid_raw.items()}
-    randoms: list[dict] = [{}]
-    if "random" in raw:
-        count, rseed, ranges = _random(raw["random"], f"{where}random")
-        rng = np.random.default_rng(rseed)
-        randoms = []
-        for _ in range(count):
-            draw = {}
-            for knob, (lo, hi) in ranges.items():
-                if isinstance(lo, int) and isinstance(hi, int):
-                    draw[knob] = int(rng.integers(lo, hi, endpoint=True))
-                else:
-                    draw[knob] = float(rng.uniform(lo, hi))
-            randoms.append(draw)
-    draws: list[int | None] = [None]
-    params_raw: Mapping = {}
-    useed = 0
-    if "uncertainty" in raw:
-        u = _mapping(raw["uncertainty"], f"{where}uncertainty", ("draws", "seed"))
-        n_draws = _int(u.get("draws", 0), f"{where}uncertainty.draws", lo=1)
-        useed = _int(u.get("seed", 0), f"{where}uncertainty.seed")
-        try:
-            params_raw = load_yaml(params_path, "parameter file", ScenarioError)[0] or {}
-        except IspTwinError as exc:
-            raise type(exc)(f"{where}uncertainty: {exc}") from None
-        if not draw_parameters(params_raw, useed, 0):
-            raise _err(f"{where}uncertainty", f"{params_path} gives no ci95 to draw from")
-        draws = list(range(n_draws))
+    return params_path.resolve()
 
-    case_keys = {k for c in cases for k in c if k != "label"}
-    random_keys = set(randoms[0])
+
+def _random_draws(spec: Any, where: str) -> list[dict]:
+    """The ``random`` section's draws: knob -> value, integers for integer ranges."""
+    count, rseed, ranges = _random(spec, where)
+    rng = np.random.default_rng(rseed)
+    randoms = []
+    for _ in range(count):
+        draw = {}
+        for knob, (lo, hi) in ranges.items():
+            if isinstance(lo, int) and isinstance(hi, int):
+                draw[knob] = int(rng.integers(lo, hi, endpoint=True))
+            else:
+                draw[knob] = float(rng.uniform(lo, hi))
+        randoms.append(draw)
+    return randoms
+
+
+def _with_uncertainty(design: _Design, spec: Any, params_path: Path, where: str) -> _Design:
+    """The design with the ``uncertainty`` section's parameter draws (from the file's ci95)."""
+    from isp_twin.input_files import load_yaml
+
+    u = _mapping(spec, where, ("draws", "seed"))
+    n_draws = _int(u.get("draws", 0), f"{where}.draws", lo=1)
+    useed = _int(u.get("seed", 0), f"{where}.seed")
+    try:
+        params_raw = load_yaml(params_path, "parameter file", ScenarioError)[0] or {}
+    except IspTwinError as exc:
+        raise type(exc)(f"{where}: {exc}") from None
+    if not draw_parameters(params_raw, useed, 0):
+        raise _err(where, f"{params_path} gives no ci95 to draw from")
+    return dataclasses.replace(
+        design, draws=list(range(n_draws)), params_raw=params_raw, uncertainty_seed=useed
+    )
+
+
+def _check_design(design: _Design, source: str | Path) -> None:
+    """No knob set by two sections; no more than `MAX_RUNS` runs."""
+    case_keys = {k for c in design.cases for k in c if k != "label"}
+    random_keys = set(design.randoms[0])
+    grid_keys = set(design.grid)
     for a, b, both in (
-        (set(grid), case_keys, "grid and cases"),
-        (set(grid), random_keys, "grid and random"),
+        (grid_keys, case_keys, "grid and cases"),
+        (grid_keys, random_keys, "grid and random"),
         (case_keys, random_keys, "cases and random"),
     ):
         if a & b:
             raise _err(f"{source}", f"'{sorted(a & b)[0]}' is set by both {both}")
-    total = len(cases) * math.prod(len(v) for v in grid.values()) * len(randoms)
-    total *= len(draws) * len(seeds)
+    total = len(design.cases) * math.prod(len(v) for v in design.grid.values())
+    total *= len(design.randoms) * len(design.draws) * len(design.seeds)
     if total > MAX_RUNS:
         raise _err(f"{source}", f"{total} runs is more than the {MAX_RUNS} a sweep may hold")
 
+
+def _expand_runs(
+    design: _Design, base: Scenario, params_path: Path, axis: str, source: str | Path
+) -> list[RunSpec]:
+    """Every (case, grid point, random draw, parameter draw, seed), each checked by the
+    scenario loader; identical runs kept once."""
     base_raw = scenario_to_raw(base)
     digest = _file_digest(params_path)
-    knob_names = (["label"] if "cases" in raw else []) + list(grid)
-    knob_names += list(randoms[0]) + (["draw"] if draws != [None] else [])
     runs: list[RunSpec] = []
     keys: set[str] = set()
     draw_cache: dict[int, dict] = {}
+    grid = design.grid
     for case, values, rdraw, d in itertools.product(
-        cases, itertools.product(*grid.values()), randoms, draws
+        design.cases, itertools.product(*grid.values()), design.randoms, design.draws
     ):
         settings = {k: v for k, v in case.items() if k != "label"}
         settings.update(zip(grid, values))
@@ -502,8 +553,10 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
         pdraw = None
         if d is not None:
             knobs["draw"] = d
-            pdraw = draw_cache.setdefault(d, draw_parameters(params_raw, useed, d))
-        for seed in seeds:
+            pdraw = draw_cache.setdefault(
+                d, draw_parameters(design.params_raw, design.uncertainty_seed, d)
+            )
+        for seed in design.seeds:
             run = make_run(
                 len(runs), scenario_raw, base.source, params_path, seed, knobs, axis, pdraw, digest
             )
@@ -511,7 +564,7 @@ def parse_sweep(raw: Any, source: str | Path = "<sweep>") -> Sweep:
             if run.key not in keys:
                 keys.add(run.key)
                 runs.append(run)
-    return Sweep(name=name, source=src, axis=axis, knob_names=tuple(knob_names), runs=tuple(runs))
+    return runs
 
 
 def load_sweep(path: str | Path) -> Sweep:

@@ -216,14 +216,7 @@ def execute(
     Returns:
         (runs done now, runs skipped because the store had them).
     """
-    finished = store.finished_keys()
-    pending: list[RunSpec] = []
-    seen = set()
-    for spec in runs:
-        if spec.key in finished or spec.key in seen:
-            continue
-        seen.add(spec.key)
-        pending.append(spec)
+    pending = _pending(runs, store.finished_keys())
     skipped = len(runs) - len(pending)
     if batch < 1:
         raise IspTwinError(f"batch must be >= 1 runs per task, got {batch}")
@@ -238,17 +231,8 @@ def execute(
         return tracker.done, skipped
     own = None
     if client is None:
-        if scheduler is not None:
-            from distributed import Client
-
-            try:
-                client = Client(scheduler, timeout="10s")
-            except (OSError, TimeoutError) as exc:
-                raise IspTwinError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
-            own = (client, None)
-        else:
-            client, cluster = local_client(worker_count(workers, len(pending)))
-            own = (client, cluster)
+        own = _own_client(scheduler, workers, len(pending))
+        client = own[0]
     try:
         _run_on_dask(client, pending, store, tracker, name, batch)
     finally:
@@ -257,6 +241,35 @@ def execute(
             if own[1] is not None:
                 own[1].close()
     return tracker.done, skipped
+
+
+def _pending(runs: Sequence[RunSpec], finished: set[str]) -> list[RunSpec]:
+    """The runs not in the store yet, each key once, in design order."""
+    pending: list[RunSpec] = []
+    seen = set()
+    for spec in runs:
+        if spec.key in finished or spec.key in seen:
+            continue
+        seen.add(spec.key)
+        pending.append(spec)
+    return pending
+
+
+def _own_client(scheduler: str | None, workers: int | None, n_pending: int) -> tuple[Any, Any]:
+    """(client, local cluster or None): the scheduler at `scheduler`, else a local cluster.
+
+    Raises:
+        IspTwinError: the scheduler does not answer.
+    """
+    if scheduler is not None:
+        from distributed import Client
+
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as exc:
+            raise IspTwinError(f"--scheduler {scheduler}: cannot connect ({exc})") from None
+        return client, None
+    return local_client(worker_count(workers, n_pending))
 
 
 class _Tracker:

@@ -240,7 +240,7 @@ def plot_knobs(s: SweepSummary, out_dir: str | Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from isp_twin.atomic import atomic_path
+    from isp_twin.output.files import staged_path
 
     out_dir = Path(out_dir)
     written = []
@@ -266,7 +266,7 @@ def plot_knobs(s: SweepSummary, out_dir: str | Path) -> list[Path]:
         ax.legend(fontsize=8)
         fig.tight_layout()
         path = out_dir / f"J_{_safe_name(k.knob)}.png"
-        with atomic_path(path) as tmp:
+        with staged_path(path) as tmp:
             fig.savefig(tmp, dpi=100, format="png")
         plt.close(fig)
         written.append(path)

@@ -18,8 +18,8 @@ Special destinations:
 - a character device (``/dev/null``, ``/dev/full``) or a FIFO: written
   through (a FIFO needs a reader, else the command fails rather than hangs).
 
-Outside a transaction `staged_path` commits its one file at once
-(`isp_twin.atomic` keeps that older interface).
+Outside a transaction `staged_path` commits its one file at once;
+`write_text_atomic` writes one text file that way.
 
 Known limit: renames are done one after the other; a rename failing after an
 earlier one succeeded (a disk removed mid-commit) leaves the earlier file.
@@ -51,6 +51,7 @@ __all__ = [
     "stdout_for_outputs",
     "staged_path",
     "transaction",
+    "write_text_atomic",
 ]
 
 #: The path that means standard output.
@@ -368,3 +369,10 @@ def transaction() -> Iterator[None]:
     finally:
         _transaction.reset(token)
     tx.commit()
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write `text` (UTF-8) to `path` whole or not at all (a `staged_path`)."""
+    with staged_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
