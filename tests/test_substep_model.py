@@ -161,3 +161,78 @@ def test_an_edit_to_friction_py_makes_the_cached_substep_kernel_stale(monkeypatc
     law = friction.stribeck
     monkeypatch.setattr(friction, "stribeck", lambda *args: law(*args) * (1 + 1e-12))
     assert not substep_model.compiled_law_is_current()
+
+
+def _kernel_case(m: int, side: str, n_sets: int = 7, seed: int = 11):
+    """Inputs of the sub-step kernel: random sets, some rows starting at rest,
+    a non-zero extra drive (as effects give), reversals and sticks."""
+    from isp_twin.substep_model import _substep_table
+
+    rng = np.random.default_rng(seed)
+    params = _params(n_sets, seed=seed)
+    u, angle = _command(seed)
+    n_rows = 2 * n_sets
+    table = _substep_table(
+        RateParams.from_vector(np.repeat(params.to_vector(), 2, axis=0)), n_rows, m
+    )
+    us = np.ascontiguousarray(np.tile(u, (n_rows, 1)) * rng.uniform(0.6, 1.2, (n_rows, 1)))
+    extra = 2e-3 * rng.standard_normal((n_rows, N))
+    side_y = np.ascontiguousarray(np.tile(angle, (n_rows, 1)) + rng.normal(0, 1e-3, (n_rows, 1)))
+    w0 = np.where(np.arange(n_rows) % 2 == 0, 0.0, rng.normal(0, 0.05, n_rows))
+    y0 = side_y[:, 0].copy()
+    use_side = side == "taught"
+    fixed = {"R": 1, "L": -1}.get(side, 0)
+    return table, us, extra, side_y, use_side, fixed, w0, y0
+
+
+def _run_kernel(kernel, case, m, mid, split, tail=(), per_sample=False):
+    table, u, extra, side_y, use_side, fixed, w0, y0 = case
+    w, y = w0.copy(), y0.copy()
+    out = [np.zeros(u.shape) for _ in range(3)] + [np.zeros(u.shape, dtype=np.int64)]
+    spans = [(k, k + 1) for k in range(1, N)] if per_sample else [(1, N)]
+    for lo, hi in spans:
+        kernel(table, u, extra, side_y, use_side, fixed, lo, hi, m, DT, mid, split, w, y,
+               *out, *tail)  # fmt: skip
+    return [*out, w, y]
+
+
+@pytest.mark.parametrize(
+    "m, mid, split, side",
+    [(10, True, True, "taught"), (10, True, True, "own"), (1, False, False, "taught"),
+     (3, True, False, "R"), (7, False, True, "L")],
+)  # fmt: skip
+def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(m, mid, split, side):
+    # The interleaved rows and the parallel blocks change only the order in
+    # which independent rows are computed: every number must be the same.
+    from substep_kernel_reference import advance_row_by_row
+
+    from isp_twin.substep_model import _advance_blocks, _advance_rows
+
+    case = _kernel_case(m, side)
+    n_rows = case[1].shape[0]
+    ref = _run_kernel(advance_row_by_row, case, m, mid, split)
+    assert np.count_nonzero(ref[0] == 0.0) > 100  # sticks were exercised
+    assert len(np.unique(ref[3][:, 1:])) == (4 if side in ("taught", "own") else 2)
+    runs = {
+        "serial": _run_kernel(_advance_rows, case, m, mid, split, (0, n_rows)),
+        "per sample": _run_kernel(_advance_rows, case, m, mid, split, (0, n_rows), True),
+    }
+    for blocks in (1, 2, 3, n_rows):
+        runs[f"{blocks} blocks"] = _run_kernel(_advance_blocks, case, m, mid, split, (blocks,))
+    runs["2 blocks again"] = _run_kernel(_advance_blocks, case, m, mid, split, (2,))
+    for name, got in runs.items():
+        for a, b in zip(ref, got):
+            assert np.array_equal(a, b), name
+
+
+@pytest.mark.parametrize("parallel", [True, False])
+def test_simulate_substeps_is_the_same_on_one_thread_or_all(monkeypatch, parallel):
+    from isp_twin import substep_model
+
+    params = _params(9, seed=13)
+    u, angle = _command(4)
+    before = simulate_substeps(params, u, DT, angle_measured=angle, gyro_average=True)
+    monkeypatch.setattr(substep_model, "PARALLEL_MIN_SUBSTEPS", 0 if parallel else 10**12)
+    after = simulate_substeps(params, u, DT, angle_measured=angle, gyro_average=True)
+    for f in ("omega", "angle", "regime", "omega_true"):
+        assert np.array_equal(getattr(before, f), getattr(after, f))
