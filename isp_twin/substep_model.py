@@ -490,24 +490,43 @@ def simulate_substeps(
         e.reset()
     args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
     use_side = angle_measured is not None
-    if not (commands or torques):
-        extra = np.zeros((n_rows, n))
-        _advance(table, u_rows, extra, side_y, use_side, fixed, 1, n, *args, w, y, point,
-                 reading, angle, regime)  # fmt: skip
-    else:
-        # Effects per sample: their command and acceleration held over the sub-steps.
+    extra = np.zeros((n_rows, n))
+    u_eff = u_rows
+    if commands and not set(commands) & set(torques):
+        # A command hook sees only the command: run it over the whole run
+        # first (the same calls in the same order as inside the sample loop).
         u_eff = u_rows.copy()
-        extra = np.zeros((n_rows, n))
         for k in range(1, n):
             uk = u_rows[:, k - 1]
             for e in commands:
                 uk = e.command(uk)
             u_eff[:, k - 1] = uk
+        commands = []
+    if torques and use_side and not any(e.acceleration_uses_rate for e in torques):
+        # Accelerations of the measured angle alone (cogging, springs,
+        # unbalance, offsets) are known before the run: one kernel call.
+        for k in range(1, n):
+            at = side_y[:, k - 1]
+            extra[:, k - 1] = sum(e.acceleration(at, None) for e in torques) * dt
+        torques = []
+    if not (commands or torques):
+        _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, w, y, point,
+                 reading, angle, regime)  # fmt: skip
+    else:
+        # Effects per sample: their command and acceleration held over the sub-steps.
+        if commands:
+            u_eff = u_rows.copy()
+        for k in range(1, n):
+            if commands:
+                uk = u_rows[:, k - 1]
+                for e in commands:
+                    uk = e.command(uk)
+                u_eff[:, k - 1] = uk
             if torques:
                 at = side_y[:, k - 1] if use_side else y
                 extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
-            _advance(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args, w, y,
-                     point, reading, angle, regime)  # fmt: skip
+            _advance_rows(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args, w, y,
+                          point, reading, angle, regime, 0, n_rows)  # fmt: skip
     out = reading if gyro_average else point
     if sensors:
         measured = np.empty_like(out)

@@ -236,3 +236,98 @@ def test_simulate_substeps_is_the_same_on_one_thread_or_all(monkeypatch, paralle
     after = simulate_substeps(params, u, DT, angle_measured=angle, gyro_average=True)
     for f in ("omega", "angle", "regime", "omega_true"):
         assert np.array_equal(getattr(before, f), getattr(after, f))
+
+
+def _effect_specs(rng: np.random.Generator, n_sets: int) -> dict[str, dict[str, np.ndarray]]:
+    """Batched parameters (P,) of every library effect, drawn inside its bounds."""
+    from isp_twin.effects import EFFECTS
+
+    specs = {}
+    for name, cls in EFFECTS.items():
+        params = {}
+        for p in cls.param_names:
+            lo, hi = cls.bounds[p]
+            params[p] = rng.uniform(lo, lo + 0.3 * (hi - lo), n_sets)
+        specs[name] = params
+    return specs
+
+
+def _per_sample_loop(params, u, angle, effects, integration, omega0):
+    """The effects path as it was: every hook and one kernel call per sample."""
+    from isp_twin.substep_model import _advance_rows, _substep_table
+
+    n_rows, n = u.shape
+    m = integration.substeps
+    table = _substep_table(params, n_rows, m, integration.exact_effect_hold)
+    w, y = omega0.copy(), angle[:, 0].copy()
+    point, reading, ang = (np.zeros((n_rows, n)) for _ in range(3))
+    regime = np.zeros((n_rows, n), dtype=np.int64)
+    point[:, 0] = reading[:, 0] = w
+    ang[:, 0] = y
+    u_eff, extra = u.copy(), np.zeros((n_rows, n))
+    for e in effects:
+        e.reset()
+    for k in range(1, n):
+        uk = u[:, k - 1]
+        for e in effects:
+            uk = e.command(uk)
+        u_eff[:, k - 1] = uk
+        extra[:, k - 1] = sum(e.acceleration(angle[:, k - 1], w) for e in effects) * DT
+        _advance_rows(table, u_eff, extra, angle, True, 0, k, k + 1, m, DT,
+                      integration.midpoint_friction, integration.split_reversals, w, y, point,
+                      reading, ang, regime, 0, n_rows)  # fmt: skip
+    return point, ang, regime
+
+
+@pytest.mark.parametrize(
+    "names",
+    [("cogging",), ("cable_spring", "unbalance", "torque_offset"), ("input_delay", "deadzone"),
+     ("saturation", "cogging"), ("lugre", "input_delay")],
+)  # fmt: skip
+def test_effects_evaluated_before_the_run_give_the_per_sample_numbers(names):
+    # Command hooks and angle-only accelerations are evaluated over the whole
+    # run before one kernel call; the numbers are those of the per-sample loop.
+    from isp_twin.effects.batched import make_batched
+
+    rng = np.random.default_rng(17)
+    n_sets = 5
+    params = _params(n_sets, seed=19)
+    u, angle = _command(5)
+    specs = _effect_specs(rng, n_sets)
+    angle_rows = np.tile(angle, (n_sets, 1))
+    omega0 = rng.normal(0, 0.05, n_sets)
+
+    def effects():
+        return [make_batched(n, specs[n], DT) for n in names]
+
+    kw = {"omega0": omega0, "angle0": angle_rows[:, 0], "angle_measured": angle_rows}
+    got = simulate_substeps(params, u, DT, effects=effects(), **kw)
+    want = _per_sample_loop(
+        params, np.tile(u, (n_sets, 1)), angle_rows, effects(), Integration(), omega0
+    )
+    assert np.array_equal(got.omega, want[0])
+    assert np.array_equal(got.angle, want[1])
+    assert np.array_equal(got.regime[:, 1:], want[2][:, 1:])
+    plain = simulate_substeps(params, u, DT, **kw)
+    assert not np.array_equal(got.omega, plain.omega)  # the effects acted
+
+
+@pytest.mark.parametrize("name", ["cogging", "cable_spring", "unbalance", "torque_offset"])
+def test_an_acceleration_declared_rate_free_ignores_the_rate_and_keeps_no_state(name):
+    from isp_twin.effects import EFFECTS
+    from isp_twin.effects.batched import make_batched
+
+    assert not EFFECTS[name].acceleration_uses_rate
+    rng = np.random.default_rng(23)
+    effect = make_batched(name, _effect_specs(rng, 6)[name], DT)
+    angle = rng.uniform(-1, 1, 6)
+    first = effect.acceleration(angle, rng.normal(0, 1, 6))
+    for _ in range(3):
+        assert np.array_equal(effect.acceleration(angle, rng.normal(0, 1, 6)), first)
+        assert np.array_equal(effect.acceleration(angle, None), first)
+
+
+def test_lugre_declares_that_its_acceleration_uses_the_rate():
+    from isp_twin.effects import EFFECTS
+
+    assert EFFECTS["lugre"].acceleration_uses_rate
