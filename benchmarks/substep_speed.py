@@ -126,11 +126,13 @@ def kernels(args) -> None:
 def run_command(
     argv: list[str], pythonpath: Path, timeout_s: float
 ) -> tuple[int, float, float, str]:
-    """(exit code, wall [s], CPU [s] of the child and its threads, last stderr line)."""
+    """(exit code, wall [s], CPU [s] of the child and its threads, last stderr line)
+    of ``isp-twin ARGV`` run from the checkout `pythonpath`."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     proc = subprocess.run(
         [sys.executable, "-m", "isp_twin.cli", *argv],
+        cwd=pythonpath,  # `-m` puts the working directory first on sys.path
         env=dict(os.environ, PYTHONPATH=str(pythonpath)),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
