@@ -107,6 +107,7 @@ def kernels(args) -> None:
         rows = inputs[1].shape[0]
         old, ref = time_kernel(advance_row_by_row, inputs, (), args.repeat)
         ser, a = time_kernel(_advance_rows, inputs, (0, rows), args.repeat)
+        ser_wall, _ = time_kernel(_advance_rows, inputs, (0, rows), args.repeat, time.perf_counter)
         blocks = min(numba.get_num_threads(), rows)
         par, b = time_kernel(_advance_blocks, inputs, (blocks,), args.repeat, time.perf_counter)
         same = all(np.array_equal(p, q) and np.array_equal(p, r) for p, q, r in zip(ref, a, b))
@@ -116,8 +117,9 @@ def kernels(args) -> None:
             f"m = {inputs[4]} (best of {args.repeat}), per sample per set:\n"
             f"  row by row (before)     {old * ns:7.1f} ns CPU\n"
             f"  interleaved, 1 thread   {ser * ns:7.1f} ns CPU    new/old {ser / old:.2f}\n"
-            f"  interleaved, {blocks} threads  {par * ns:7.1f} ns wall   new/old {par / old:.2f}"
-            f" (wall against CPU: below 1/{blocks} needs {blocks} idle cores)\n"
+            f"  interleaved, 1 thread   {ser_wall * ns:7.1f} ns wall\n"
+            f"  interleaved, {blocks} threads  {par * ns:7.1f} ns wall   {blocks} threads/1 thread "
+            f"{par / ser_wall:.2f} (wall; {1 / blocks:.2f} needs {blocks} idle cores)\n"
             f"  same numbers bit for bit: {same}"
         )
     print(f"numba threading layer: {numba.threading_layer()}, threads {numba.get_num_threads()}")

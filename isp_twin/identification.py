@@ -787,24 +787,36 @@ def identify(
 
     cache: dict[str, np.ndarray] = {}
 
-    def evaluate(z: np.ndarray) -> None:
+    def evaluate(z: np.ndarray, jacobian: bool) -> None:
+        """The residual at z, and with `jacobian` its forward differences.
+
+        The columns are simulated only when asked for: least squares needs
+        none at a trial point it then rejects (each column costs one set).
+        """
         nonlocal evaluations
         h = np.full(z.size, 1e-6)
-        pts = np.vstack([z, z + np.diag(h)])
-        evaluations += pts.shape[0]
-        e = residuals(full(_from_z(pts)), data, s.side, rest, effects, timing, s.integration)
-        cache.update(z=z.copy(), e=e[0], j=((e[1:] - e[0]) / h[:, None]).T)
-        if progress is not None:
-            progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
+        if "z" not in cache or not np.array_equal(cache["z"], z):
+            pts = np.vstack([z, z + np.diag(h)]) if jacobian else z[None]
+            evaluations += pts.shape[0]
+            e = residuals(full(_from_z(pts)), data, s.side, rest, effects, timing, s.integration)
+            cache.clear()
+            cache.update(z=z.copy(), e=e[0])
+            if jacobian:
+                cache["j"] = ((e[1:] - e[0]) / h[:, None]).T
+            if progress is not None:
+                progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
+        elif jacobian and "j" not in cache:
+            pts = z + np.diag(h)
+            evaluations += pts.shape[0]
+            e = residuals(full(_from_z(pts)), data, s.side, rest, effects, timing, s.integration)
+            cache["j"] = ((e - cache["e"]) / h[:, None]).T
 
     def resid(z: np.ndarray) -> np.ndarray:
-        if "z" not in cache or not np.array_equal(cache["z"], z):
-            evaluate(z)
+        evaluate(z, jacobian=False)
         return cache["e"]
 
     def jac(z: np.ndarray) -> np.ndarray:
-        if "z" not in cache or not np.array_equal(cache["z"], z):
-            evaluate(z)
+        evaluate(z, jacobian=True)
         return cache["j"]
 
     def refine(z: np.ndarray, budget: int) -> tuple[np.ndarray, float, str]:
