@@ -62,7 +62,14 @@ from isp_twin.effects import make_effect
 from isp_twin.errors import DataError, ParameterError
 from isp_twin.friction import regime_index
 from isp_twin.measured import MeasuredData
-from isp_twin.parameters import REGIMES, AxisParams, EffectSpec, RateParams, RegimeParams
+from isp_twin.parameters import (
+    REGIMES,
+    AxisParams,
+    EffectSpec,
+    FittedWith,
+    RateParams,
+    RegimeParams,
+)
 from isp_twin.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
 from isp_twin.units import DEG
 from isp_twin.verdict import noise_floor_of
@@ -72,6 +79,8 @@ __all__ = [
     "SIDE_SOURCES",
     "TIMINGS",
     "Timing",
+    "fitted_with",
+    "recorded_model",
     "gyro_reading",
     "rate_noise",
     "Settings",
@@ -128,6 +137,29 @@ class Timing:
 TIMINGS: tuple[Timing, ...] = tuple(
     Timing(shift, avg) for avg in (False, True) for shift in (0.0, 0.25, 0.5, 0.75)
 )
+
+
+def fitted_with(integration: Integration, timing: Timing) -> FittedWith:
+    """The parameter file's record (`FittedWith`) of a fit's model and read-out timing."""
+    return FittedWith(
+        substeps=int(integration.substeps),
+        midpoint_friction=bool(integration.midpoint_friction),
+        split_reversals=bool(integration.split_reversals),
+        exact_effect_hold=bool(integration.exact_effect_hold),
+        gyro_average=bool(timing.gyro_average),
+        side_shift_steps=float(timing.side_shift),
+    )
+
+
+def recorded_model(record: FittedWith) -> tuple[Integration, Timing]:
+    """The model integration and read-out timing a `FittedWith` record names."""
+    integration = Integration(
+        record.substeps,
+        record.midpoint_friction,
+        record.split_reversals,
+        record.exact_effect_hold,
+    )
+    return integration, Timing(record.side_shift_steps, record.gyro_average)
 
 
 @dataclass(frozen=True)
@@ -760,24 +792,40 @@ def identify(
 
     cache: dict[str, np.ndarray] = {}
 
-    def evaluate(z: np.ndarray) -> None:
+    def evaluate(z: np.ndarray, jacobian: bool) -> None:
+        """The residual at z, and with `jacobian` its forward differences.
+
+        The columns are simulated only when asked for: least squares needs
+        none at a trial point it then rejects (each column costs one set).
+        """
         nonlocal evaluations
         h = np.full(z.size, 1e-6)
-        pts = np.vstack([z, z + np.diag(h)])
-        evaluations += pts.shape[0]
-        e = residuals(full(_from_z(pts)), data, s.side_source, rest, effects, timing, s.integration)
-        cache.update(z=z.copy(), e=e[0], j=((e[1:] - e[0]) / h[:, None]).T)
-        if progress is not None:
-            progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
+        if "z" not in cache or not np.array_equal(cache["z"], z):
+            pts = np.vstack([z, z + np.diag(h)]) if jacobian else z[None]
+            evaluations += pts.shape[0]
+            e = residuals(
+                full(_from_z(pts)), data, s.side_source, rest, effects, timing, s.integration
+            )
+            cache.clear()
+            cache.update(z=z.copy(), e=e[0])
+            if jacobian:
+                cache["j"] = ((e[1:] - e[0]) / h[:, None]).T
+            if progress is not None:
+                progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
+        elif jacobian and "j" not in cache:
+            pts = z + np.diag(h)
+            evaluations += pts.shape[0]
+            e = residuals(
+                full(_from_z(pts)), data, s.side_source, rest, effects, timing, s.integration
+            )
+            cache["j"] = ((e - cache["e"]) / h[:, None]).T
 
     def resid(z: np.ndarray) -> np.ndarray:
-        if "z" not in cache or not np.array_equal(cache["z"], z):
-            evaluate(z)
+        evaluate(z, jacobian=False)
         return cache["e"]
 
     def jac(z: np.ndarray) -> np.ndarray:
-        if "z" not in cache or not np.array_equal(cache["z"], z):
-            evaluate(z)
+        evaluate(z, jacobian=True)
         return cache["j"]
 
     def refine(z: np.ndarray, budget: int) -> tuple[np.ndarray, float, str]:
@@ -952,7 +1000,8 @@ def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = 
 
     Ke = b·Ke / b etc.; the half-widths scale the same way (b carries no
     uncertainty: it is fixed). Regimes not identified keep the prior values;
-    the prior's effects are kept (they were part of the fitted model).
+    the prior's effects are kept (they were part of the fitted model). The
+    model and read-out timing of the fit are recorded (`fitted_with`).
     """
     b = tuple(r.b for r in prior.regimes)
     regimes = list(result.rate.to_regimes(b))
@@ -979,6 +1028,7 @@ def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = 
         ci95=tuple(ci_regimes),
         identified=result.regime_identified,
         note=note or prior.note,
+        fitted_with=fitted_with(result.integration, result.timing),
     )
 
 

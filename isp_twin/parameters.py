@@ -42,6 +42,7 @@ __all__ = [
     "PAPER_FIELDS",
     "RegimeParams",
     "EffectSpec",
+    "FittedWith",
     "AxisParams",
     "ParameterSet",
     "RateParams",
@@ -91,6 +92,50 @@ class EffectSpec:
 
 
 @dataclass(frozen=True)
+class FittedWith:
+    """How an axis' rate parameters were fitted: the model they belong to.
+
+    Written by `identify` and `diagnose` as the axis' ``fitted_with:`` block;
+    `diagnose` simulates with it (docs/identification.md). A file without the
+    block means the defaults of `isp_twin.substep_model.DEFAULT_INTEGRATION`
+    and a read-out timing chosen from the data.
+
+    Attributes:
+        substeps: integration steps per sample m [1] (1..100; 1 with all
+            three options off is the paper's Eq. 6).
+        midpoint_friction: sliding friction at each sub-step's mean rate.
+        split_reversals: a sub-step that reaches rate 0 decides stick or
+            breakaway for its remaining part.
+        exact_effect_hold: effects' accelerations held by their exact
+            zero-order hold over the sample.
+        gyro_average: the gyro reads the rate averaged over the sample (else
+            the rate at the sample instant).
+        side_shift_steps: the half-plane is read from the angle at step start
+            + this fraction of a step (a sub-step) [steps], 0 <= x < 1.
+    """
+
+    substeps: int
+    midpoint_friction: bool
+    split_reversals: bool
+    exact_effect_hold: bool
+    gyro_average: bool
+    side_shift_steps: float
+
+
+#: Keys of a ``fitted_with:`` block, in `FittedWith` order.
+FITTED_WITH_KEYS: tuple[str, ...] = (
+    "substeps",
+    "midpoint_friction",
+    "split_reversals",
+    "exact_effect_hold",
+    "gyro_average",
+    "side_shift_steps",
+)
+#: Largest sub-step count a file or ``--substeps`` may ask for.
+MAX_SUBSTEPS = 100
+
+
+@dataclass(frozen=True)
 class AxisParams:
     """One axis: four regimes in `REGIMES` order, optional CI and effects.
 
@@ -100,6 +145,8 @@ class AxisParams:
         identified: per regime, False where the regime kept its prior value.
         effects: extra effects, applied by the axis model and the twin.
         note: free text (source of the numbers).
+        fitted_with: the model the rate parameters were fitted with (None:
+            not recorded, the defaults; `FittedWith`).
     """
 
     regimes: tuple[RegimeParams, ...]
@@ -107,6 +154,7 @@ class AxisParams:
     identified: tuple[bool, ...] = (True, True, True, True)
     effects: tuple[EffectSpec, ...] = ()
     note: str = ""
+    fitted_with: FittedWith | None = None
 
     def regime(self, name: str) -> RegimeParams:
         return self.regimes[REGIMES.index(name)]
@@ -289,8 +337,32 @@ def _parse_effects(raw, path, keys) -> tuple[EffectSpec, ...]:
     return tuple(out)
 
 
+def _parse_fitted_with(raw, path, keys) -> FittedWith:
+    _check_keys(raw, FITTED_WITH_KEYS, path, keys, required=FITTED_WITH_KEYS)
+    m = raw["substeps"]
+    if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= MAX_SUBSTEPS:
+        raise ParameterError(
+            f"{_where(path, keys + ['substeps'])}: expected an integer from 1 to "
+            f"{MAX_SUBSTEPS}, got {m!r}"
+        )
+    flags = {}
+    for k in FITTED_WITH_KEYS[1:5]:
+        if not isinstance(raw[k], bool):
+            raise ParameterError(
+                f"{_where(path, keys + [k])}: expected true or false, got {raw[k]!r}"
+            )
+        flags[k] = raw[k]
+    shift = _number(raw["side_shift_steps"], path, keys + ["side_shift_steps"])
+    if not 0.0 <= shift < 1.0:
+        raise ParameterError(
+            f"{_where(path, keys + ['side_shift_steps'])}: must lie in [0, 1) (a fraction of a "
+            f"step), got {shift}"
+        )
+    return FittedWith(substeps=m, side_shift_steps=shift, **flags)
+
+
 def _parse_axis(raw, path, keys) -> AxisParams:
-    allowed = REGIMES + ("note", "identified", "effects")
+    allowed = REGIMES + ("note", "identified", "effects", "fitted_with")
     _check_keys(raw, allowed, path, keys, required=REGIMES)
     regimes, cis = [], []
     for name in REGIMES:
@@ -303,12 +375,16 @@ def _parse_axis(raw, path, keys) -> AxisParams:
         _check_keys(ident, REGIMES, path, keys + ["identified"])
         identified = tuple(bool(ident.get(n, True)) for n in REGIMES)
     effects = _parse_effects(raw.get("effects", []), path, keys + ["effects"])
+    fitted_with = None
+    if "fitted_with" in raw:
+        fitted_with = _parse_fitted_with(raw["fitted_with"], path, keys + ["fitted_with"])
     return AxisParams(
         regimes=tuple(regimes),
         ci95=tuple(cis),
         identified=identified,
         effects=effects,
         note=str(raw.get("note", "")),
+        fitted_with=fitted_with,
     )
 
 
@@ -372,6 +448,13 @@ def parameters_to_dict(params: ParameterSet) -> dict:
                 {"name": e.name, "params": {k: _round(v) for k, v in e.params.items()}}
                 for e in axis.effects
             ]
+        if axis.fitted_with is not None:
+            f = axis.fitted_with
+            out["fitted_with"] = {
+                "substeps": int(f.substeps),
+                **{k: bool(getattr(f, k)) for k in FITTED_WITH_KEYS[1:5]},
+                "side_shift_steps": float(f.side_shift_steps),
+            }
         axes[name] = out
     return {
         "name": params.name,

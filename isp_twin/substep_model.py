@@ -41,7 +41,14 @@ per cent of arguments; with alpha = 0 the two agree bit for bit,
 `tests/test_substep_model.py`).
 
 The kernel is compiled with numba: a stick-slip loop over (rows, samples,
-sub-steps) that numpy cannot vectorize along time.
+sub-steps) that numpy cannot vectorize along time. Its rows (parameter sets x
+runs) are independent: it advances `GROUP_ROWS` of them side by side, one
+sub-step at a time (the processor overlaps their dependency chains: 0.67x the
+CPU time of a row-by-row loop, `benchmarks/substep_speed.py`), and a large
+batch is split in blocks over numba's threads (``NUMBA_NUM_THREADS``; 1 turns
+it off). Every row does the same operations in the same order whatever the
+grouping or the threads: the numbers are the row-by-row loop's, bit for bit
+(`tests/test_substep_model.py`).
 """
 
 from __future__ import annotations
@@ -49,8 +56,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from isp_twin import friction_compiled as law
 from isp_twin.axis_model import AxisResponse
@@ -113,7 +121,7 @@ DEFAULT_INTEGRATION = Integration()
 
 
 @njit(cache=True, nogil=True)
-def _advance(
+def _advance_group(
     table,
     u,
     extra,
@@ -132,86 +140,206 @@ def _advance(
     reading,
     angle,
     regime,
+    r_lo,
+    r_hi,
+    frac,
+    scratch,
+    idx,
 ):  # pragma: no cover - compiled
-    """Advance every row from sample k_lo-1 to k_hi-1 (writes columns k_lo..k_hi-1).
+    """Advance rows r_lo..r_hi-1 from sample k_lo-1 to k_hi-1 (writes columns k_lo..k_hi-1).
 
-    table: (S, 4, 5) per-sub-step (p, c·gain, c·static, c·coulomb, alpha) and
-    and the effects' factor in column 5 of a (S, 4, 6) table (`_substep_table`);
-    u, extra: (S, N) per-sample command
+    table: (S, 4, 6) per-sub-step (p, c·gain, c·static, c·coulomb, alpha,
+    effect factor) (`_substep_table`); u, extra: (S, N) per-sample command
     and extra drive [rate form per sample]; side_y: (S, N) angle choosing the
-    half-plane (used when use_side); fixed_side: -1 none, else the side index.
+    half-plane (used when use_side); fixed_side: -1 none, else the side index; frac:
+    (m,) j/m; scratch: (7, >= rows) floats, idx: (>= rows,) ints (work space,
+    allocated once per call of `_advance_rows`: per-sample calls are many).
+
+    The rows are the innermost loop: one sub-step of a row is a chain of
+    dependent operations (two exp of the Stribeck curve), so the processor
+    overlaps the independent chains of neighbouring rows. Each row does the
+    same operations in the same order as a row-by-row loop (bit for bit,
+    `tests/test_substep_model.py`).
     """
-    n_rows = u.shape[0]
+    nb = r_hi - r_lo
     h = dt / m
-    for i in range(n_rows):
-        w = w_state[i]
-        y = y_state[i]
-        for k in range(k_lo, k_hi):
-            uk = u[i, k - 1]
-            ek = extra[i, k - 1]
-            acc = 0.5 * w
-            idx = 0
-            for j in range(m):
+    w = scratch[0]  # rate, angle and reading sum of each row
+    y = scratch[1]
+    acc = scratch[2]
+    uk = scratch[3]  # the sample's command, extra drive, angle and its step
+    ek = scratch[4]
+    y0 = scratch[5]
+    dy = scratch[6]
+    for b in range(nb):
+        w[b] = w_state[r_lo + b]
+        y[b] = y_state[r_lo + b]
+    fixed = fixed_side
+    for k in range(k_lo, k_hi):
+        for b in range(nb):
+            i = r_lo + b
+            uk[b] = u[i, k - 1]
+            ek[b] = extra[i, k - 1]
+            acc[b] = 0.5 * w[b]
+            idx[b] = 0
+            if use_side:
+                y0[b] = side_y[i, k - 1]
+                dy[b] = side_y[i, k] - y0[b]
+        for j in range(m):
+            fj = frac[j]
+            for b in range(nb):
+                i = r_lo + b
+                wb = w[b]
                 if fixed_side >= 0:
-                    side = fixed_side
+                    side = fixed
                 elif use_side:
-                    y0 = side_y[i, k - 1]
-                    if j == 0:
-                        ys = y0
-                    else:
-                        ys = y0 + (j / m) * (side_y[i, k] - y0)
-                    side = law.side_of(ys)
+                    side = law.side_of(y0[b] if j == 0 else y0[b] + fj * dy[b])
                 else:
-                    side = law.side_of(y)
-                if w != 0.0:
-                    idx = law.regime_of(side, w)
-                    p = table[i, idx, 0]
-                    drive = table[i, idx, 1] * uk + table[i, idx, 5] * ek
-                    ts = table[i, idx, 2]
-                    tc = table[i, idx, 3]
-                    al = table[i, idx, 4]
-                    slide = law.sliding(w, ts, tc, al)
-                    w_new = p * w + drive - slide
-                    if mid and w_new * w > 0.0:
-                        wm = 0.5 * (w + w_new)
+                    side = law.side_of(y[b])
+                if wb != 0.0:
+                    ix = law.regime_of(side, wb)
+                    p = table[i, ix, 0]
+                    drive = table[i, ix, 1] * uk[b] + table[i, ix, 5] * ek[b]
+                    ts = table[i, ix, 2]
+                    tc = table[i, ix, 3]
+                    al = table[i, ix, 4]
+                    slide = law.sliding(wb, ts, tc, al)
+                    w_new = p * wb + drive - slide
+                    if mid and w_new * wb > 0.0:
+                        wm = 0.5 * (wb + w_new)
                         slide = law.sliding(wm, ts, tc, al)
-                        w_new = p * w + drive - slide
-                    if w_new * w <= 0.0:
+                        w_new = p * wb + drive - slide
+                    if w_new * wb <= 0.0:
                         rest_part = 0.0
                         if split and w_new != 0.0:
-                            rest_part = 1.0 - w / (w - w_new)
+                            rest_part = 1.0 - wb / (wb - w_new)
                         w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
-                            r0 = law.regime_of(side, uk)
-                            d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
-                            idx = law.regime_of(side, d)
-                            ts2 = table[i, idx, 2]
+                            r0 = law.regime_of(side, uk[b])
+                            d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
+                            ix = law.regime_of(side, d)
+                            ts2 = table[i, ix, 2]
                             if abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
-                    w = w_new
+                    wb = w_new
                 else:
                     # At rest the command's sign picks the gain and the total
                     # drive's sign the breakaway level (as `axis_model.simulate`).
-                    r0 = law.regime_of(side, uk)
-                    d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
-                    idx = law.regime_of(side, d)
-                    ts = table[i, idx, 2]
+                    r0 = law.regime_of(side, uk[b])
+                    d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
+                    ix = law.regime_of(side, d)
+                    ts = table[i, ix, 2]
                     if abs(d) > ts:
-                        w = d - law.stiction(d, ts)
+                        wb = d - law.stiction(d, ts)
                     else:
-                        w = 0.0
-                y = y + h * w
+                        wb = 0.0
+                w[b] = wb
+                idx[b] = ix
+                y[b] = y[b] + h * wb
                 if j < m - 1:
-                    acc += w
+                    acc[b] += wb
                 else:
-                    acc += 0.5 * w
-            point[i, k] = w
-            reading[i, k] = acc / m
-            angle[i, k] = y
-            regime[i, k] = idx
-        w_state[i] = w
-        y_state[i] = y
+                    acc[b] += 0.5 * wb
+        for b in range(nb):
+            i = r_lo + b
+            point[i, k] = w[b]
+            reading[i, k] = acc[b] / m
+            angle[i, k] = y[b]
+            regime[i, k] = idx[b]
+    for b in range(nb):
+        w_state[r_lo + b] = w[b]
+        y_state[r_lo + b] = y[b]
+
+
+#: Rows advanced together (`_advance_group`): enough independent chains to
+#: keep the processor busy, few enough that their samples stay in L1 cache.
+GROUP_ROWS = 16
+
+
+@njit(cache=True, nogil=True)
+def _advance_rows(
+    table,
+    u,
+    extra,
+    side_y,
+    use_side,
+    fixed_side,
+    k_lo,
+    k_hi,
+    m,
+    dt,
+    mid,
+    split,
+    w_state,
+    y_state,
+    point,
+    reading,
+    angle,
+    regime,
+    r_lo,
+    r_hi,
+):  # pragma: no cover - compiled
+    """`_advance_group` on rows r_lo..r_hi-1, `GROUP_ROWS` at a time."""
+    frac = np.empty(m)
+    for j in range(m):
+        frac[j] = j / m
+    scratch = np.empty((7, GROUP_ROWS))
+    idx = np.zeros(GROUP_ROWS, dtype=np.int64)
+    for g in range(r_lo, r_hi, GROUP_ROWS):
+        g_hi = min(g + GROUP_ROWS, r_hi)
+        _advance_group(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid,
+                       split, w_state, y_state, point, reading, angle, regime, g, g_hi, frac,
+                       scratch, idx)  # fmt: skip
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _advance_blocks(
+    table,
+    u,
+    extra,
+    side_y,
+    use_side,
+    fixed_side,
+    k_lo,
+    k_hi,
+    m,
+    dt,
+    mid,
+    split,
+    w_state,
+    y_state,
+    point,
+    reading,
+    angle,
+    regime,
+    n_blocks,
+):  # pragma: no cover - compiled
+    """`_advance_rows` on `n_blocks` blocks of rows in parallel (rows are independent)."""
+    n_rows = u.shape[0]
+    for c in prange(n_blocks):
+        r_lo, r_hi = c * n_rows // n_blocks, (c + 1) * n_rows // n_blocks
+        _advance_rows(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
+                      w_state, y_state, point, reading, angle, regime, r_lo, r_hi)  # fmt: skip
+
+
+#: Sub-steps (rows x samples x m) below which a call stays on one thread:
+#: waking the threads costs tens of microseconds, the work per sub-step ~10 ns
+#: (the per-sample calls of the effects path are ~10**3).
+PARALLEL_MIN_SUBSTEPS = 200_000
+
+
+def _advance(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
+             w_state, y_state, point, reading, angle, regime):  # fmt: skip
+    """Advance every row from sample k_lo-1 to k_hi-1 (`_advance_rows`), on all
+    of numba's threads when the call is large enough; the same numbers either way."""
+    n_rows = u.shape[0]
+    blocks = min(numba.get_num_threads(), n_rows)
+    args = (table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
+            w_state, y_state, point, reading, angle, regime)  # fmt: skip
+    if blocks > 1 and n_rows * (k_hi - k_lo) * m >= PARALLEL_MIN_SUBSTEPS:
+        _advance_blocks(*args, blocks)
+    else:
+        _advance_rows(*args, 0, n_rows)
 
 
 @njit(cache=True)
@@ -244,7 +372,7 @@ def _ensure_current_law() -> None:
         return
     if not compiled_law_is_current():
         # Stale cache: compile afresh (this rewrites the cache).
-        for kernel in (_law_probe, _advance):
+        for kernel in (_law_probe, _advance_group, _advance_rows, _advance_blocks):
             kernel.recompile()
         if not compiled_law_is_current():
             raise RuntimeError("substep_model: the compiled friction law differs from friction.py")
@@ -363,24 +491,43 @@ def simulate_substeps(
         e.reset()
     args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
     use_side = angle_measured is not None
-    if not (commands or torques):
-        extra = np.zeros((n_rows, n))
-        _advance(table, u_rows, extra, side_y, use_side, fixed, 1, n, *args, w, y, point,
-                 reading, angle, regime)  # fmt: skip
-    else:
-        # Effects per sample: their command and acceleration held over the sub-steps.
+    extra = np.zeros((n_rows, n))
+    u_eff = u_rows
+    if commands and not set(commands) & set(torques):
+        # A command hook sees only the command: run it over the whole run
+        # first (the same calls in the same order as inside the sample loop).
         u_eff = u_rows.copy()
-        extra = np.zeros((n_rows, n))
         for k in range(1, n):
             uk = u_rows[:, k - 1]
             for e in commands:
                 uk = e.command(uk)
             u_eff[:, k - 1] = uk
+        commands = []
+    if torques and use_side and not any(e.acceleration_uses_rate for e in torques):
+        # Accelerations of the measured angle alone (cogging, springs,
+        # unbalance, offsets) are known before the run: one kernel call.
+        for k in range(1, n):
+            at = side_y[:, k - 1]
+            extra[:, k - 1] = sum(e.acceleration(at, None) for e in torques) * dt
+        torques = []
+    if not (commands or torques):
+        _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, w, y, point,
+                 reading, angle, regime)  # fmt: skip
+    else:
+        # Effects per sample: their command and acceleration held over the sub-steps.
+        if commands:
+            u_eff = u_rows.copy()
+        for k in range(1, n):
+            if commands:
+                uk = u_rows[:, k - 1]
+                for e in commands:
+                    uk = e.command(uk)
+                u_eff[:, k - 1] = uk
             if torques:
                 at = side_y[:, k - 1] if use_side else y
                 extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
-            _advance(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args, w, y,
-                     point, reading, angle, regime)  # fmt: skip
+            _advance_rows(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args, w, y,
+                          point, reading, angle, regime, 0, n_rows)  # fmt: skip
     out = reading if gyro_average else point
     if sensors:
         measured = np.empty_like(out)

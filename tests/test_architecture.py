@@ -319,7 +319,7 @@ LONG_FUNCTIONS = {
     # state in locals (a split would pass it through arrays), and each is
     # checked bit for bit against a plain Python form.
     "isp_twin/closed_loop_kernel.py::_advance",
-    "isp_twin/substep_model.py::_advance",
+    "isp_twin/substep_model.py::_advance_group",
     "isp_twin/substep_model.py::simulate_substeps",
     # The fast model's batched loop over samples (Eq. 6): the hot path of
     # identification, one friction-law evaluation per sample (issue 11, item 1).

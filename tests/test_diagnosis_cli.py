@@ -150,3 +150,57 @@ def test_bad_input_is_one_line_naming_what_and_where(tmp_path, capsys):
     )
     err = capsys.readouterr().err
     assert "did you mean 'cogging'" in err and err.count("\n") == 1
+
+
+def test_the_updated_file_records_the_model_and_a_second_diagnosis_uses_it(case, capsys):
+    from isp_twin.identification import recorded_model
+
+    _, folder, files, out, _ = case
+    first = json.loads((folder / "result.json").read_text())
+    assert first["model_source"].startswith("--substeps")
+    record = load_parameters(out).axis(AXIS).fitted_with
+    assert record is not None and record.substeps == 1  # what the first run was told
+    integration, timing = recorded_model(record)
+    assert first["integration"]["substeps_per_sample"] == integration.substeps
+    assert first["timing"] == {
+        "gyro_average": timing.gyro_average,
+        "side_shift_steps": timing.side_shift,
+    }
+
+    # The record without the effect (diagnose of a file whose axis carries
+    # effects fails today in diagnosis/search.py: `fixed` passed as `effects`).
+    from dataclasses import replace
+
+    from isp_twin.parameters import save_parameters
+
+    params = load_parameters(out)
+    plain = replace(params.axis(AXIS), effects=())
+    recorded = save_parameters(params.with_axis(AXIS, plain), folder / "recorded.yaml")
+
+    def again(*extra: str) -> tuple[dict, str]:
+        result = folder / f"again{len(extra)}.json"
+        argv = ["diagnose", str(files[0]), "--holdout", str(files[2]), "--params", str(recorded)]
+        argv += ["--axis", AXIS, "--candidates", "cogging", "--max-rounds", "1"]
+        argv += ["--no-recording", "--report", str(folder / "again"), "--json", str(result)]
+        argv += ["--out", str(folder / f"again{len(extra)}.yaml")]
+        capsys.readouterr()
+        assert main([*argv, *extra]) == 0
+        return json.loads(result.read_text()), capsys.readouterr().out
+
+    # No --substeps: the file's record, timing included (not chosen again).
+    used, _ = again()
+    assert used["model_source"] == "parameter file (fitted_with)"
+    assert used["integration"]["substeps_per_sample"] == 1
+    assert used["timing"] == first["timing"]
+    # Another --substeps overrides it, and says so.
+    used, text = again("--substeps", "4")
+    assert used["integration"]["substeps_per_sample"] == 4
+    line = f"--substeps 4 overrides {recorded}: axes.{AXIS}.fitted_with.substeps 1"
+    assert line in text and line in used["model_override"]
+    # --out writes the model back: diagnose's own where it re-fitted the axis,
+    # else the record the unchanged parameters came with.
+    for n_extra, m in ((0, 1), (2, 4)):
+        written = load_parameters(folder / f"again{n_extra}.yaml").axis(AXIS)
+        refitted = written.regimes != plain.regimes or written.effects != plain.effects
+        assert written.fitted_with == (plain.fitted_with if not refitted else written.fitted_with)
+        assert written.fitted_with.substeps == (m if refitted else 1)

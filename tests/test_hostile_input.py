@@ -631,6 +631,58 @@ for pid in PARAMETER_EDITS:
         "{C}/ok/p.yaml",
     )
 
+#: A valid ``fitted_with`` block (docs/identification.md) and the bad values
+#: tried in it: each must name the file, the key and what is allowed.
+FITTED_WITH = (
+    "    fitted_with: {substeps: 10, midpoint_friction: true, split_reversals: true, "
+    "exact_effect_hold: true, gyro_average: true, side_shift_steps: 0.5}\n"
+)
+FITTED_WITH_EDITS = {
+    "substeps-zero": ("substeps: 10", "substeps: 0", "fitted_with.substeps"),
+    "substeps-fraction": ("substeps: 10", "substeps: 2.5", "fitted_with.substeps"),
+    "substeps-too-many": ("substeps: 10", "substeps: 1000", "fitted_with.substeps"),
+    "substeps-text": ("substeps: 10", "substeps: ten", "fitted_with.substeps"),
+    "flag-not-bool": ("gyro_average: true", "gyro_average: 1", "fitted_with.gyro_average"),
+    "flag-text": ("midpoint_friction: true", "midpoint_friction: yes please", "midpoint"),
+    "shift-negative": (
+        "side_shift_steps: 0.5",
+        "side_shift_steps: -0.25",
+        "fitted_with.side_shift_steps",
+    ),
+    "shift-one": ("side_shift_steps: 0.5", "side_shift_steps: 1.0", "fitted_with.side_shift_steps"),
+    "shift-nan": (
+        "side_shift_steps: 0.5",
+        "side_shift_steps: .nan",
+        "fitted_with.side_shift_steps",
+    ),
+    "unknown-key": ("gyro_average: true", "gyro_averaging: true", "did you mean"),
+    "missing-key": ("split_reversals: true, ", "", "fitted_with.split_reversals: missing"),
+    "not-a-mapping": (FITTED_WITH, "    fitted_with: 10\n", "expected a mapping"),
+}
+for fid, (_, _, fragment) in FITTED_WITH_EDITS.items():
+    case(
+        f"fitted-with-{fid}-diagnose",
+        "diagnose",
+        "{W}/good.csv",
+        "--params",
+        f"{{W}}/params_fitted_{fid}.yaml",
+        "--out",
+        "{C}/ok/d.yaml",
+        expect=f"params_fitted_{fid}.yaml: axes.inner_az.{fragment}"
+        if fid not in ("flag-text", "unknown-key", "not-a-mapping")
+        else fragment,
+    )
+    case(
+        f"fitted-with-{fid}-identify-prior",
+        "identify",
+        "{W}/good.csv",
+        "--prior",
+        f"{{W}}/params_fitted_{fid}.yaml",
+        "--out",
+        "{C}/ok/p.yaml",
+        expect=f"params_fitted_{fid}.yaml",
+    )
+
 
 def _build(root: Path) -> Path:
     world = build_world(root)
@@ -664,6 +716,12 @@ def _build(root: Path) -> Path:
     for pid, (old, new) in PARAMETER_EDITS.items():
         assert old in params, pid
         (world / f"params_{pid}.yaml").write_text(params.replace(old, new, 1))
+    fitted = params.replace("  inner_az:\n", "  inner_az:\n" + FITTED_WITH, 1)
+    assert fitted != params
+    for fid, (old, new, _) in FITTED_WITH_EDITS.items():
+        assert old in fitted, fid
+        (world / f"params_fitted_{fid}.yaml").write_text(fitted.replace(old, new, 1))
+    (world / "params_fitted_ok.yaml").write_text(fitted)
     write_csv(world / "set1_a750_f0.5_y-3.csv", good_table())
     for p in world.iterdir():
         if p.is_file() and not p.name.startswith("bad_unreadable"):

@@ -80,3 +80,56 @@ def test_pole_outside_unit_interval_is_rejected(tmp_path):
 def test_missing_file(tmp_path):
     with pytest.raises(ResourceNotFound, match="nope.yaml"):
         load_parameters(tmp_path / "nope.yaml")
+
+
+def test_the_fitted_with_block_round_trips_and_its_absence_means_none(paper_params, tmp_path):
+    from dataclasses import replace
+
+    from isp_twin.parameters import FittedWith
+
+    assert all(a.fitted_with is None for a in paper_params.axes.values())
+    record = FittedWith(7, True, False, True, True, 0.25)
+    axis = replace(paper_params.axis("inner_az"), fitted_with=record)
+    path = save_parameters(paper_params.with_axis("inner_az", axis), tmp_path / "p.yaml")
+    loaded = load_parameters(path)
+    assert loaded.axis("inner_az").fitted_with == record
+    assert loaded.axis("inner_el").fitted_with is None
+    text = path.read_text()
+    assert text.count("fitted_with:") == 1 and "substeps: 7" in text
+
+
+def test_identify_records_the_model_and_timing_it_fitted_with():
+    import numpy as np
+
+    from isp_twin.identification import (
+        IdentificationResult,
+        Timing,
+        recorded_model,
+        to_axis_params,
+    )
+    from isp_twin.parameters import RateParams
+    from isp_twin.resources import default_parameters_path
+    from isp_twin.substep_model import Integration
+
+    prior = load_parameters(default_parameters_path()).axis("inner_az")
+    rate = prior.rate_params()
+    integration, timing = Integration(6, True, False, True), Timing(0.75, True)
+    result = IdentificationResult(
+        rate=RateParams.from_vector(rate.to_vector()),
+        ci95=np.full(20, np.nan),
+        identifiable=np.zeros(20, dtype=bool),
+        visits=np.zeros(4, dtype=int),
+        regime_identified=(True,) * 4,
+        rmse_train={},
+        cost=0.0,
+        history=(),
+        initial_cost=0.0,
+        rho=0.0,
+        evaluations=0,
+        wall_time_s=0.0,
+        status="",
+        timing=timing,
+        integration=integration,
+    )
+    record = to_axis_params(result, prior).fitted_with
+    assert recorded_model(record) == (integration, timing)

@@ -12,6 +12,7 @@ from isp_twin.effects import make_effect
 from isp_twin.identification import gyro_reading
 from isp_twin.parameters import EffectSpec, RateParams
 from isp_twin.substep_model import EQ6, Integration, simulate_substeps
+from isp_twin.vocabulary import SIDE_L, SIDE_R
 
 DT = 1e-3
 N = 3000
@@ -161,3 +162,173 @@ def test_an_edit_to_friction_py_makes_the_cached_substep_kernel_stale(monkeypatc
     law = friction.stribeck
     monkeypatch.setattr(friction, "stribeck", lambda *args: law(*args) * (1 + 1e-12))
     assert not substep_model.compiled_law_is_current()
+
+
+def _kernel_case(m: int, side: str, n_sets: int = 7, seed: int = 11):
+    """Inputs of the sub-step kernel: random sets, some rows starting at rest,
+    a non-zero extra drive (as effects give), reversals and sticks."""
+    from isp_twin.substep_model import _substep_table
+
+    rng = np.random.default_rng(seed)
+    params = _params(n_sets, seed=seed)
+    u, angle = _command(seed)
+    n_rows = 2 * n_sets
+    table = _substep_table(
+        RateParams.from_vector(np.repeat(params.to_vector(), 2, axis=0)), n_rows, m
+    )
+    us = np.ascontiguousarray(np.tile(u, (n_rows, 1)) * rng.uniform(0.6, 1.2, (n_rows, 1)))
+    extra = 2e-3 * rng.standard_normal((n_rows, N))
+    side_y = np.ascontiguousarray(np.tile(angle, (n_rows, 1)) + rng.normal(0, 1e-3, (n_rows, 1)))
+    w0 = np.where(np.arange(n_rows) % 2 == 0, 0.0, rng.normal(0, 0.05, n_rows))
+    y0 = side_y[:, 0].copy()
+    use_side = side == "taught"
+    fixed = {"R": SIDE_R, "L": SIDE_L}.get(side, -1)
+    return table, us, extra, side_y, use_side, fixed, w0, y0
+
+
+def _run_kernel(kernel, case, m, mid, split, tail=(), per_sample=False):
+    table, u, extra, side_y, use_side, fixed, w0, y0 = case
+    w, y = w0.copy(), y0.copy()
+    out = [np.zeros(u.shape) for _ in range(3)] + [np.zeros(u.shape, dtype=np.int64)]
+    spans = [(k, k + 1) for k in range(1, N)] if per_sample else [(1, N)]
+    for lo, hi in spans:
+        kernel(table, u, extra, side_y, use_side, fixed, lo, hi, m, DT, mid, split, w, y,
+               *out, *tail)  # fmt: skip
+    return [*out, w, y]
+
+
+@pytest.mark.parametrize(
+    "m, mid, split, side",
+    [(10, True, True, "taught"), (10, True, True, "own"), (1, False, False, "taught"),
+     (3, True, False, "R"), (7, False, True, "L")],
+)  # fmt: skip
+def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(m, mid, split, side):
+    # The interleaved rows and the parallel blocks change only the order in
+    # which independent rows are computed: every number must be the same.
+    from substep_kernel_reference import advance_row_by_row
+
+    from isp_twin.substep_model import _advance_blocks, _advance_rows
+
+    case = _kernel_case(m, side)
+    n_rows = case[1].shape[0]
+    ref = _run_kernel(advance_row_by_row, case, m, mid, split)
+    assert np.count_nonzero(ref[0] == 0.0) > 100  # sticks were exercised
+    assert len(np.unique(ref[3][:, 1:])) == (4 if side in ("taught", "own") else 2)
+    runs = {
+        "serial": _run_kernel(_advance_rows, case, m, mid, split, (0, n_rows)),
+        "per sample": _run_kernel(_advance_rows, case, m, mid, split, (0, n_rows), True),
+    }
+    for blocks in (1, 2, 3, n_rows):
+        runs[f"{blocks} blocks"] = _run_kernel(_advance_blocks, case, m, mid, split, (blocks,))
+    runs["2 blocks again"] = _run_kernel(_advance_blocks, case, m, mid, split, (2,))
+    for name, got in runs.items():
+        for a, b in zip(ref, got):
+            assert np.array_equal(a, b), name
+
+
+@pytest.mark.parametrize("parallel", [True, False])
+def test_simulate_substeps_is_the_same_on_one_thread_or_all(monkeypatch, parallel):
+    from isp_twin import substep_model
+
+    params = _params(9, seed=13)
+    u, angle = _command(4)
+    before = simulate_substeps(params, u, DT, angle_measured=angle, gyro_average=True)
+    monkeypatch.setattr(substep_model, "PARALLEL_MIN_SUBSTEPS", 0 if parallel else 10**12)
+    after = simulate_substeps(params, u, DT, angle_measured=angle, gyro_average=True)
+    for f in ("omega", "angle", "regime", "omega_true"):
+        assert np.array_equal(getattr(before, f), getattr(after, f))
+
+
+def _effect_specs(rng: np.random.Generator, n_sets: int) -> dict[str, dict[str, np.ndarray]]:
+    """Batched parameters (P,) of every library effect, drawn inside its bounds."""
+    from isp_twin.effects import EFFECTS
+
+    specs = {}
+    for name, cls in EFFECTS.items():
+        params = {}
+        for p in cls.param_names:
+            lo, hi = cls.bounds[p]
+            params[p] = rng.uniform(lo, lo + 0.3 * (hi - lo), n_sets)
+        specs[name] = params
+    return specs
+
+
+def _per_sample_loop(params, u, angle, effects, integration, omega0):
+    """The effects path as it was: every hook and one kernel call per sample."""
+    from isp_twin.substep_model import _advance_rows, _substep_table
+
+    n_rows, n = u.shape
+    m = integration.substeps
+    table = _substep_table(params, n_rows, m, integration.exact_effect_hold)
+    w, y = omega0.copy(), angle[:, 0].copy()
+    point, reading, ang = (np.zeros((n_rows, n)) for _ in range(3))
+    regime = np.zeros((n_rows, n), dtype=np.int64)
+    point[:, 0] = reading[:, 0] = w
+    ang[:, 0] = y
+    u_eff, extra = u.copy(), np.zeros((n_rows, n))
+    for e in effects:
+        e.reset()
+    for k in range(1, n):
+        uk = u[:, k - 1]
+        for e in effects:
+            uk = e.command(uk)
+        u_eff[:, k - 1] = uk
+        extra[:, k - 1] = sum(e.acceleration(angle[:, k - 1], w) for e in effects) * DT
+        _advance_rows(table, u_eff, extra, angle, True, -1, k, k + 1, m, DT,
+                      integration.midpoint_friction, integration.split_reversals, w, y, point,
+                      reading, ang, regime, 0, n_rows)  # fmt: skip
+    return point, ang, regime
+
+
+@pytest.mark.parametrize(
+    "names",
+    [("cogging",), ("cable_spring", "unbalance", "torque_offset"), ("input_delay", "deadzone"),
+     ("saturation", "cogging"), ("lugre", "input_delay")],
+)  # fmt: skip
+def test_effects_evaluated_before_the_run_give_the_per_sample_numbers(names):
+    # Command hooks and angle-only accelerations are evaluated over the whole
+    # run before one kernel call; the numbers are those of the per-sample loop.
+    from isp_twin.effects.batched import make_batched
+
+    rng = np.random.default_rng(17)
+    n_sets = 5
+    params = _params(n_sets, seed=19)
+    u, angle = _command(5)
+    specs = _effect_specs(rng, n_sets)
+    angle_rows = np.tile(angle, (n_sets, 1))
+    omega0 = rng.normal(0, 0.05, n_sets)
+
+    def effects():
+        return [make_batched(n, specs[n], DT) for n in names]
+
+    kw = {"omega0": omega0, "angle0": angle_rows[:, 0], "angle_measured": angle_rows}
+    got = simulate_substeps(params, u, DT, effects=effects(), **kw)
+    want = _per_sample_loop(
+        params, np.tile(u, (n_sets, 1)), angle_rows, effects(), Integration(), omega0
+    )
+    assert np.array_equal(got.omega, want[0])
+    assert np.array_equal(got.angle, want[1])
+    assert np.array_equal(got.regime[:, 1:], want[2][:, 1:])
+    plain = simulate_substeps(params, u, DT, **kw)
+    assert not np.array_equal(got.omega, plain.omega)  # the effects acted
+
+
+@pytest.mark.parametrize("name", ["cogging", "cable_spring", "unbalance", "torque_offset"])
+def test_an_acceleration_declared_rate_free_ignores_the_rate_and_keeps_no_state(name):
+    from isp_twin.effects import EFFECTS
+    from isp_twin.effects.batched import make_batched
+
+    assert not EFFECTS[name].acceleration_uses_rate
+    rng = np.random.default_rng(23)
+    effect = make_batched(name, _effect_specs(rng, 6)[name], DT)
+    angle = rng.uniform(-1, 1, 6)
+    first = effect.acceleration(angle, rng.normal(0, 1, 6))
+    for _ in range(3):
+        assert np.array_equal(effect.acceleration(angle, rng.normal(0, 1, 6)), first)
+        assert np.array_equal(effect.acceleration(angle, None), first)
+
+
+def test_lugre_declares_that_its_acceleration_uses_the_rate():
+    from isp_twin.effects import EFFECTS
+
+    assert EFFECTS["lugre"].acceleration_uses_rate

@@ -1,6 +1,6 @@
 """The options shared by `identify` and `diagnose`: how a file's own columns
 map onto t, u, omega, theta, how much data is accepted, and how the model
-integrates a sample (``--substeps``)."""
+integrates a sample (``--substeps``, or a parameter file's ``fitted_with``)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.errors import DataError, ParameterError
+from isp_twin.identification import Timing, recorded_model
 from isp_twin.measured import DataMapping, load_data_description, mapping_from_options
+from isp_twin.parameters import MAX_SUBSTEPS, AxisParams
 from isp_twin.substep_model import DEFAULT_INTEGRATION, EQ6, Integration
 
 __all__ = [
@@ -20,6 +22,7 @@ __all__ = [
     "check_sample_budget",
     "integration_from_args",
     "mapping_from_args",
+    "model_from_file",
 ]
 
 #: Default limit on the samples of one identify/diagnose call (all runs together):
@@ -57,21 +60,49 @@ def add_data_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--substeps",
         type=int,
-        default=DEFAULT_INTEGRATION.substeps,
+        default=None,
         metavar="M",
-        help="the model integrates each sample in M sub-steps (default "
-        f"{DEFAULT_INTEGRATION.substeps}; 1: the paper's Eq. 6, friction held over the sample)",
+        help="the model integrates each sample in M sub-steps (1: the paper's Eq. 6, friction "
+        "held over the sample; default: diagnose: the parameter file's fitted_with block, "
+        f"identify and files without the block: {DEFAULT_INTEGRATION.substeps})",
     )
 
 
 def integration_from_args(args: argparse.Namespace) -> Integration:
-    """The model integration ``--substeps`` asks for (1: Eq. 6 exactly)."""
-    m = args.substeps
-    if m < 1 or m > 100:
-        raise ParameterError(f"--substeps must be between 1 and 100, got {m}")
+    """The model integration ``--substeps`` asks for (1: Eq. 6 exactly; not given: the default)."""
+    m = DEFAULT_INTEGRATION.substeps if args.substeps is None else args.substeps
+    if m < 1 or m > MAX_SUBSTEPS:
+        raise ParameterError(f"--substeps must be between 1 and {MAX_SUBSTEPS}, got {m}")
     if m == 1:
         return EQ6
     return replace(DEFAULT_INTEGRATION, substeps=m)
+
+
+def model_from_file(
+    args: argparse.Namespace, axis: AxisParams, where: str
+) -> tuple[Integration, Timing | None, str | None]:
+    """The model integration and read-out timing to simulate an axis with.
+
+    The axis' ``fitted_with`` block (`FittedWith`) unless ``--substeps`` asks
+    for another sub-step count; without the block, ``--substeps`` or the
+    default, and the timing is chosen from the data (None). Returns also a
+    line stating an override (None when there is none); `where` names the
+    block in it (file and axis).
+    """
+    record = axis.fitted_with
+    if record is None:
+        return integration_from_args(args), None, None
+    if args.substeps is None or args.substeps == record.substeps:
+        integration, timing = recorded_model(record)
+        return integration, timing, None
+    integration = integration_from_args(args)
+    return (
+        integration,
+        None,
+        f"--substeps {args.substeps} overrides {where}.fitted_with.substeps {record.substeps}: "
+        "the parameters were fitted with another model; the read-out timing is chosen again "
+        "from the data",
+    )
 
 
 def check_initial_angle(args: argparse.Namespace) -> None:

@@ -12,15 +12,16 @@ from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
     check_sample_budget,
-    integration_from_args,
     mapping_from_args,
+    model_from_file,
 )
 from isp_twin.commands.progress import working
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, FIXED_SIDE
 from isp_twin.errors import ParameterError
+from isp_twin.identification import fitted_with
 from isp_twin.measured import check_sample_period, load_measured, unique_names
 from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
-from isp_twin.parameters import load_parameters, save_parameters
+from isp_twin.parameters import AxisParams, ParameterSet, load_parameters, save_parameters
 from isp_twin.units import DEG
 from isp_twin.vocabulary import GIMBAL_AXES
 
@@ -120,6 +121,11 @@ def execute(args: argparse.Namespace) -> int:
     params = load_parameters(args.params)
     runs = _load_runs(args, params)
     train, holdout = runs[: len(args.data)], runs[len(args.data) :]
+    axis_in = params.axis(args.axis)
+    where = f"{params.path or params.name}: axes.{args.axis}"
+    integration, timing, override = model_from_file(args, axis_in, where)
+    if override is not None and not args.quiet:
+        print(override)
     candidates = None
     if args.candidates:
         candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
@@ -135,15 +141,33 @@ def execute(args: argparse.Namespace) -> int:
             side=args.side,
             seed=args.seed,
             base_search=args.base_search,
-            integration=integration_from_args(args),
+            integration=integration,
+            timing=timing,
         )
     result = diag.to_json()
+    result.update(_model_source(args, axis_in, override))
     result["sample_period_s"] = {d.name: d.dt for d in runs}
     result.setdefault("units", {})["sample_period_s"] = "s"
     say = _teller(args.quiet)
     _print_diagnosis(diag, result, args.axis, len(train), say)
-    _write_outputs(args, diag, result, report_path, recording, say)
+    _write_outputs(args, diag, axis_in, result, report_path, recording, say)
     return 0
+
+
+def _model_source(args: argparse.Namespace, axis_in: AxisParams, override: str | None) -> dict:
+    """Where the fitted model (sub-steps, read-out) came from, for the JSON."""
+    if override is not None:
+        source = "--substeps (overrides the parameter file's fitted_with)"
+    elif axis_in.fitted_with is not None:
+        source = "parameter file (fitted_with)"
+    elif args.substeps is not None:
+        source = "--substeps (the parameter file has no fitted_with block)"
+    else:
+        source = "defaults (the parameter file has no fitted_with block)"
+    out = {"model_source": source}
+    if override is not None:
+        out["model_override"] = override
+    return out
 
 
 def _teller(quiet: bool):
@@ -225,13 +249,15 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
             )
 
 
-def _write_outputs(args, diag, result: dict, report_path: Path, recording, say) -> None:
+def _write_outputs(
+    args, diag, axis_in: AxisParams, result: dict, report_path: Path, recording, say
+) -> None:
     """Parameters, report, recording and JSON as one transaction; then where they went."""
     from isp_twin.diagnosis.report import write_recording, write_report
 
     with transaction():
         if args.out is not None:
-            out_set = replace(diag.params_out, name=args.out.stem, path=None)
+            out_set = replace(_with_model(diag, args.axis, axis_in), name=args.out.stem, path=None)
             save_parameters(out_set, args.out)
         write_report(diag, report_path, args.out)
         if recording is not None:
@@ -246,6 +272,17 @@ def _write_outputs(args, diag, result: dict, report_path: Path, recording, say) 
         say(f"recording written to {recording}  (open it with: rerun {recording})")
     if args.json is not None and not is_stdout(args.json):
         say(f"result written to {args.json}")
+
+
+def _with_model(diag, axis: str, axis_in: AxisParams) -> ParameterSet:
+    """The output parameters with the model they were fitted with recorded:
+    diagnose's own model where it re-fitted the axis, else the input file's
+    record (or none) with the parameters it came with."""
+    out = diag.params_out.axis(axis)
+    if (out.regimes, out.effects) == (axis_in.regimes, axis_in.effects):
+        return diag.params_out.with_axis(axis, replace(out, fitted_with=axis_in.fitted_with))
+    record = fitted_with(diag.integration, diag.timing)
+    return diag.params_out.with_axis(axis, replace(out, fitted_with=record))
 
 
 def _json_default(x):

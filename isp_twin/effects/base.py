@@ -19,6 +19,10 @@ class Effect:
 
     name: ClassVar[str] = "none"
     param_names: ClassVar[tuple[str, ...]] = ()
+    #: False where `acceleration` depends on the angle alone (no rate, no
+    #: state): the sub-stepped model then evaluates it before the run
+    #: instead of once per sample (`isp_twin.substep_model`).
+    acceleration_uses_rate: ClassVar[bool] = True
 
     def __init__(self, params: Mapping[str, float], dt: float = 1e-3):
         self.check_params(params)

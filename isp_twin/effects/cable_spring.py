@@ -31,6 +31,8 @@ class CableSpring(Effect):
     #: value the residual of the current model shows (`guesses`).
     frozen: ClassVar[tuple[str, ...]] = ("offset_rad_s2",)
 
+    acceleration_uses_rate = False
+
     def acceleration(self, angle, rate):
         p = self.params
         return p["offset_rad_s2"] - p["stiffness_1_s2"] * angle

@@ -32,6 +32,8 @@ class Cogging(Effect):
         "phase_rad": (-2.0 * np.pi, 2.0 * np.pi),
     }
 
+    acceleration_uses_rate = False
+
     def acceleration(self, angle, rate):
         p = self.params
         return p["amplitude_rad_s2"] * np.sin(

@@ -27,6 +27,8 @@ class TorqueOffset(Effect):
     # Gauss-Newton step moves along that degenerate direction as little as
     # it can); see docs/diagnosis.md.
 
+    acceleration_uses_rate = False
+
     def acceleration(self, angle, rate):
         return self.params["accel_rad_s2"] + 0.0 * np.asarray(angle)
 

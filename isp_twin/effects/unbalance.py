@@ -26,6 +26,8 @@ class Unbalance(Effect):
         "phase_rad": (-2.0 * np.pi, 2.0 * np.pi),
     }
 
+    acceleration_uses_rate = False
+
     def acceleration(self, angle, rate):
         p = self.params
         return p["amplitude_rad_s2"] * np.sin(angle + p["phase_rad"])

@@ -1,0 +1,110 @@
+"""The sub-step kernel as it was before its rows were interleaved and run in
+parallel (`isp_twin.substep_model` at commit 9cc08c3): one row after the other,
+the obvious loop. `tests/test_substep_model.py` checks the fast kernel against
+it bit for bit. Not cached: compiled once per test session."""
+
+from numba import njit
+
+from isp_twin import friction_compiled as law
+
+
+@njit(nogil=True)
+def advance_row_by_row(
+    table,
+    u,
+    extra,
+    side_y,
+    use_side,
+    fixed_side,
+    k_lo,
+    k_hi,
+    m,
+    dt,
+    mid,
+    split,
+    w_state,
+    y_state,
+    point,
+    reading,
+    angle,
+    regime,
+):  # pragma: no cover - compiled
+    """Advance every row from sample k_lo-1 to k_hi-1 (writes columns k_lo..k_hi-1).
+
+    table: (S, 4, 5) per-sub-step (p, c·gain, c·static, c·coulomb, alpha) and
+    and the effects' factor in column 5 of a (S, 4, 6) table (`_substep_table`);
+    u, extra: (S, N) per-sample command
+    and extra drive [rate form per sample]; side_y: (S, N) angle choosing the
+    half-plane (used when use_side); fixed_side: -1 none, else the side index.
+    """
+    n_rows = u.shape[0]
+    h = dt / m
+    for i in range(n_rows):
+        w = w_state[i]
+        y = y_state[i]
+        for k in range(k_lo, k_hi):
+            uk = u[i, k - 1]
+            ek = extra[i, k - 1]
+            acc = 0.5 * w
+            idx = 0
+            for j in range(m):
+                if fixed_side >= 0:
+                    side = fixed_side
+                elif use_side:
+                    y0 = side_y[i, k - 1]
+                    if j == 0:
+                        ys = y0
+                    else:
+                        ys = y0 + (j / m) * (side_y[i, k] - y0)
+                    side = law.side_of(ys)
+                else:
+                    side = law.side_of(y)
+                if w != 0.0:
+                    idx = law.regime_of(side, w)
+                    p = table[i, idx, 0]
+                    drive = table[i, idx, 1] * uk + table[i, idx, 5] * ek
+                    ts = table[i, idx, 2]
+                    tc = table[i, idx, 3]
+                    al = table[i, idx, 4]
+                    slide = law.sliding(w, ts, tc, al)
+                    w_new = p * w + drive - slide
+                    if mid and w_new * w > 0.0:
+                        wm = 0.5 * (w + w_new)
+                        slide = law.sliding(wm, ts, tc, al)
+                        w_new = p * w + drive - slide
+                    if w_new * w <= 0.0:
+                        rest_part = 0.0
+                        if split and w_new != 0.0:
+                            rest_part = 1.0 - w / (w - w_new)
+                        w_new = 0.0
+                        if rest_part > 0.0:
+                            # The rest of the sub-step starts at rest.
+                            r0 = law.regime_of(side, uk)
+                            d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
+                            idx = law.regime_of(side, d)
+                            ts2 = table[i, idx, 2]
+                            if abs(d) > ts2:
+                                w_new = rest_part * (d - law.stiction(d, ts2))
+                    w = w_new
+                else:
+                    # At rest the command's sign picks the gain and the total
+                    # drive's sign the breakaway level (as `axis_model.simulate`).
+                    r0 = law.regime_of(side, uk)
+                    d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
+                    idx = law.regime_of(side, d)
+                    ts = table[i, idx, 2]
+                    if abs(d) > ts:
+                        w = d - law.stiction(d, ts)
+                    else:
+                        w = 0.0
+                y = y + h * w
+                if j < m - 1:
+                    acc += w
+                else:
+                    acc += 0.5 * w
+            point[i, k] = w
+            reading[i, k] = acc / m
+            angle[i, k] = y
+            regime[i, k] = idx
+        w_state[i] = w
+        y_state[i] = y
