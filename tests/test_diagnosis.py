@@ -177,3 +177,30 @@ def test_reopened_rates_never_fit_worse_and_keep_a_known_cable_spring(rate, seed
     assert again.name == "cable_spring"
     assert again.sse <= local.sse < base.sse
     assert again.params["stiffness_1_s2"] == pytest.approx(40.0, rel=0.1)
+
+
+def test_lm_survives_a_model_that_diverges_near_the_start():
+    # A candidate that cannot be simulated beside its start (NaN residuals,
+    # or slopes so steep that the SVD of J^T J fails) ends as a fit with no
+    # interval for the parameter it cannot move, never as an exception
+    # (the single-run diagnose of a reference axis raised LinAlgError).
+    t = np.linspace(0.0, 1.0, 200)
+
+    def nan_beside_start(xs):
+        out = np.array([x[0] * t - 2.0 * t for x in xs])
+        out[xs[:, 1] > 1.0] = np.nan  # the second parameter's step diverges
+        return out
+
+    fit = levenberg_marquardt(
+        nan_beside_start, np.array([1.0, 1.0]), np.zeros(2), np.full(2, 5.0), np.ones(2)
+    )
+    assert np.isclose(fit.x[0], 2.0, rtol=1e-3) and fit.x[1] == 1.0
+    assert np.isfinite(fit.ci95[0]) and np.isnan(fit.ci95[1])
+
+    def explodes(xs):
+        return np.array([np.exp(300.0 * x[0]) * np.sin(np.arange(50.0) * x[1]) for x in xs])
+
+    fit = levenberg_marquardt(
+        explodes, np.array([2.0, 1.0]), np.zeros(2), np.full(2, 3.0), np.ones(2)
+    )
+    assert fit.cov.shape == (2, 2)

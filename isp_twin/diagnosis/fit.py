@@ -86,6 +86,7 @@ def lm_steps(
         pts = np.clip(pts, lower, upper)
         rs = yield pts
         sses = np.einsum("ij,ij->i", rs, rs).reshape(len(scan), factors.size)
+        sses = np.where(np.isfinite(sses), sses, np.inf)
         trial = x.copy()
         for j, i in enumerate(scan):
             k = int(np.argmin(sses[j]))
@@ -107,9 +108,14 @@ def lm_steps(
         step = np.where(x + h <= upper, h, -h)
         pts = x[None] + np.diag(step)
         jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)
+        # A finite-difference point the model cannot simulate (a candidate
+        # that diverges there) gives no slope: that parameter stays put this
+        # iteration and, if it never gets one, has no interval.
+        jac[:, ~np.all(np.isfinite(jac), axis=0)] = 0.0
         js = jac * scale  # scaled variables
-        a = js.T @ js
-        g = js.T @ r
+        with np.errstate(over="ignore", invalid="ignore"):  # steep slopes: see the covariance
+            a = js.T @ js
+            g = js.T @ r
         diag = np.diag(a).copy()
         diag[diag <= 0] = 1.0
         lams = lam * np.array([0.1, 1.0, 10.0])
@@ -123,6 +129,7 @@ def lm_steps(
         trials = np.array(trials)
         rt = yield trials
         sses = np.einsum("ij,ij->i", rt, rt)
+        sses = np.where(np.isfinite(sses), sses, np.inf)  # a diverged trial is no step
         best = int(np.argmin(sses))
         if sses[best] < sse:
             gain = (sse - sses[best]) / max(sse, 1e-300)
@@ -141,7 +148,13 @@ def lm_steps(
     m = r.size
     js = jac * scale
     sigma2 = sse / max(m - n, 1)
-    cov_s = sigma2 * np.linalg.pinv(js.T @ js) if n else np.zeros((0, 0))
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):
+            cov_s = sigma2 * np.linalg.pinv(js.T @ js) if n else np.zeros((0, 0))
+    except np.linalg.LinAlgError:
+        # Slopes so steep (a candidate near divergence) that the SVD fails:
+        # the parameters are not determined, which the caller reports.
+        cov_s = np.full((n, n), np.nan)
     cov = cov_s * np.outer(scale, scale)
     # A parameter the data never touch (an unvisited regime) has no interval.
     blind = ~np.any(jac != 0.0, axis=0)
