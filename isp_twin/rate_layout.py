@@ -81,6 +81,15 @@ class RateLayout:
         """Positions of one field in every regime, in regime order."""
         return tuple(self.index(r, field) for r in range(self.n_regimes))
 
+    def regime_mask(self, per_regime: np.ndarray) -> np.ndarray:
+        """Per-regime booleans (n_regimes,) -> a mask of the flat vector (size,)."""
+        per_regime = np.asarray(per_regime, dtype=bool)
+        if per_regime.shape != (self.n_regimes,):
+            raise ValueError(
+                f"regime mask: shape must be ({self.n_regimes},), got {per_regime.shape}"
+            )
+        return np.repeat(per_regime, self.n_fields)
+
     @property
     def static_indices(self) -> tuple[int, ...]:
         """Positions of the four static (breakaway) levels b·Ts."""

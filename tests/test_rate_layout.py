@@ -118,6 +118,17 @@ def test_identifications_own_field_list_agrees_until_it_is_converted():
     assert RATE_FIELDS == RATE_LAYOUT.fields
 
 
+def test_a_regime_mask_selects_exactly_those_regimes_entries():
+    visited = np.array([True, False, False, True])
+    mask = RATE_LAYOUT.regime_mask(visited)
+    for r, regime in enumerate(REGIMES):
+        assert mask[RATE_LAYOUT.regime_slice(regime)].tolist() == [visited[r]] * len(
+            RATE_LAYOUT.fields
+        )
+    with pytest.raises(ValueError, match="regime mask"):
+        RATE_LAYOUT.regime_mask([True, False])
+
+
 def test_per_field_repeats_a_row_in_every_regime():
     x = RATE_LAYOUT.per_field({f: float(i) for i, f in enumerate(RATE_LAYOUT.fields)})
     for r in REGIMES:
@@ -166,6 +177,7 @@ LAYOUT_LITERAL = re.compile(
     r"|(?<!:):20\]|\[20:|\b20 ?\+ ?\w"  # the rate part of a candidate vector
     r"|np\.(full|zeros|ones|empty)\(\(?20,"
     r"|\([A-Za-z_]\w*, 20\)"  # (n, 20) arrays
+    r"|np\.repeat\(\w+, ?5\)"  # a per-regime mask spread over the fields
     r"|\(2, 7, 12, 17\)|STATIC_INDICES ?="
 )
 
@@ -220,6 +232,7 @@ def test_the_layout_literal_allow_list_only_shrinks():
         "eff = x[:, 20 + j]",
         "ci = np.full(20, np.nan)",
         "xs = rng.standard_normal((n_sets, 20))",
+        "free = np.repeat(visited, 5)",
     ],
 )
 def test_a_planted_layout_literal_is_caught(line):
