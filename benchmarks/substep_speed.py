@@ -45,7 +45,7 @@ from substep_kernel_reference import advance_row_by_row  # noqa: E402
 
 from isp_twin.identification import Timing, side_angle  # noqa: E402
 from isp_twin.measured import MeasuredData  # noqa: E402
-from isp_twin.parameters import RateParams  # noqa: E402
+from isp_twin.parameters import RATE_LAYOUT, RateParams  # noqa: E402
 from isp_twin.reference import design_experiment  # noqa: E402
 from isp_twin.substep_model import (  # noqa: E402
     DEFAULT_INTEGRATION,
@@ -54,16 +54,14 @@ from isp_twin.substep_model import (  # noqa: E402
     _substep_table,
 )
 
-FIELDS = ("pole", "gain", "static", "coulomb", "alpha")
-
 
 def kernel_inputs(seed: int, n_sets: int):
     """Kernel arguments for `n_sets` jittered truths on the axis' two training runs."""
     exp = design_experiment(seed)
     rf = exp.truth()["rate_form"]["regimes"]
-    x = np.array([[rf[r][f] for f in FIELDS] for r in ("R+", "R-", "L+", "L-")]).ravel()
+    x = np.array([rf[r][f] for r in RATE_LAYOUT.regimes for f in RATE_LAYOUT.fields])
     rng = np.random.default_rng(seed)
-    xs = x * (1 + 0.01 * rng.standard_normal((n_sets, 20)))
+    xs = x * (1 + 0.01 * rng.standard_normal((n_sets, RATE_LAYOUT.size)))
     runs = [
         MeasuredData(n, r.t, r.u, r.omega, r.theta, None, float(r.t[1] - r.t[0]))
         for n, r in exp.runs.items()

@@ -147,10 +147,12 @@ def simulate(
         for e in sensors:
             m = e.measure(m)
         measured[0] = m
-    # One gather per step: row*4 + regime indexes the (P*4, 5) table.
-    table = np.stack([pole, gain, static, coulomb, alpha], axis=-1).reshape(n_sets * 4, 5)
+    # One gather per step: row * regimes + regime indexes the (P*regimes,
+    # fields) table, its columns in the order stacked here.
+    columns = (pole, gain, static, coulomb, alpha)
+    table = np.stack(columns, axis=-1).reshape(-1, len(columns))
     gain_flat = table[:, 1]
-    base = rows * 4
+    base = rows * pole.shape[-1]
     # A fixed side enters the regime choice as an angle on that side.
     fixed_side = None if check_side(side) is None else (1.0 if side == SIDE_R else -1.0)
     for k in range(1, n):

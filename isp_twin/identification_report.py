@@ -12,15 +12,10 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from isp_twin.identification import (
-    RATE_FIELDS,
-    IdentificationResult,
-    rmse,
-    simulate_data,
-)
+from isp_twin.identification import IdentificationResult, rmse, simulate_data
 from isp_twin.measured import MeasuredData
 from isp_twin.output.files import staged_path, write_text_atomic
-from isp_twin.parameters import PAPER_FIELDS, AxisParams
+from isp_twin.parameters import PAPER_FIELDS, RATE_LAYOUT, AxisParams
 from isp_twin.units import DEG
 from isp_twin.verdict import FitVerdict, fit_verdict, noise_floor_of
 from isp_twin.vocabulary import REGIMES
@@ -62,7 +57,7 @@ def _identifiable(result: IdentificationResult, regime: int, field: str) -> bool
     rate_field = PAPER_TO_RATE[field]
     if rate_field is None:
         return False
-    return bool(result.identifiable[regime * 5 + RATE_FIELDS.index(rate_field)])
+    return bool(result.identifiable[RATE_LAYOUT.index(regime, rate_field)])
 
 
 #: What to try when an identification is not at the noise.
@@ -107,7 +102,7 @@ def result_json(
         parameters[name] = {f: getattr(reg, f) for f in PAPER_FIELDS}
         ci95[name] = {f: (num(getattr(ci, f)) if ci is not None else None) for f in PAPER_FIELDS}
         identifiable[name] = {f: _identifiable(result, r, f) for f in PAPER_FIELDS}
-    labels = [f"{r}.{f}" for r in REGIMES for f in RATE_FIELDS]
+    labels = RATE_LAYOUT.labels()
     if verdict is None and train:
         verdict = identification_verdict(result, train, validation)
     if verdict is not None:
@@ -169,7 +164,7 @@ def _table2(result: IdentificationResult, params: AxisParams) -> list[str]:
     ]
     for f in PAPER_FIELDS:
         cells = []
-        for r in range(4):
+        for r in range(len(REGIMES)):
             v = getattr(params.regimes[r], f)
             ci = params.ci95[r]
             c = getattr(ci, f) if ci is not None else math.nan
@@ -193,11 +188,14 @@ def _rate_table(result: IdentificationResult) -> list[str]:
         "coulomb": "rad/s per sample",
         "alpha": "s/rad",
     }
-    lines = ["| quantity | unit | " + " | ".join(REGIMES) + " |", "|---|---|" + "---|" * 4]
-    for i, f in enumerate(RATE_FIELDS):
+    lines = [
+        "| quantity | unit | " + " | ".join(REGIMES) + " |",
+        "|---|---|" + "---|" * len(REGIMES),
+    ]
+    for f in RATE_LAYOUT.fields:
         cells = []
-        for r in range(4):
-            k = r * 5 + i
+        for r in range(len(REGIMES)):
+            k = RATE_LAYOUT.index(r, f)
             v = result.vector[k]
             c = result.ci95[k]
             cells.append(f"{_fmt(v)} ± {_fmt(c)}" if math.isfinite(c) else f"{_fmt(v)} (—)")

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,7 @@ import numpy as np
 
 from isp_twin.errors import ParameterError, nearest
 from isp_twin.output.files import write_text_atomic
+from isp_twin.rate_layout import RateLayout
 from isp_twin.units import DEG
 from isp_twin.vocabulary import GIMBAL_AXES, REGIMES
 
@@ -46,6 +47,7 @@ __all__ = [
     "AxisParams",
     "ParameterSet",
     "RateParams",
+    "RATE_LAYOUT",
     "load_parameters",
     "save_parameters",
 ]
@@ -234,19 +236,20 @@ class RateParams:
 
     @classmethod
     def from_vector(cls, x: np.ndarray) -> RateParams:
-        """From ``x`` of shape (..., 20): per regime (pole, gain, static, coulomb, alpha)."""
-        x = np.asarray(x, dtype=float).reshape(*np.shape(x)[:-1], 4, 5)
-        return cls(*(x[..., i] for i in range(5)))
+        """From ``x`` of shape (..., `RATE_LAYOUT.size`): per regime (pole, gain, static, coulomb, alpha)."""
+        table = RATE_LAYOUT.as_table(np.asarray(x, dtype=float))
+        return cls(**{f: table[..., i] for i, f in enumerate(RATE_LAYOUT.fields)})
 
     def to_vector(self) -> np.ndarray:
-        """Inverse of `from_vector`: shape (..., 20)."""
-        x = np.stack([self.pole, self.gain, self.static, self.coulomb, self.alpha], axis=-1)
-        return x.reshape(*x.shape[:-2], 20)
+        """Inverse of `from_vector`: shape (..., `RATE_LAYOUT.size`)."""
+        return RATE_LAYOUT.from_table(
+            np.stack([getattr(self, f) for f in RATE_LAYOUT.fields], axis=-1)
+        )
 
     def to_regimes(self, b: tuple[float, ...]) -> tuple[RegimeParams, ...]:
         """Back to the paper form, given the (unidentifiable) b of each regime."""
         out = []
-        for r in range(4):
+        for r in range(len(REGIMES)):
             br = b[r]
             out.append(
                 RegimeParams(
@@ -259,6 +262,11 @@ class RateParams:
                 )
             )
         return tuple(out)
+
+
+#: The flat rate vector of `RateParams.to_vector`: per regime in Eq. 8 order
+#: (`REGIMES`), RateParams' fields in their declared order.
+RATE_LAYOUT = RateLayout(REGIMES, tuple(f.name for f in fields(RateParams)))
 
 
 # ---------------------------------------------------------------- YAML I/O

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from isp_twin.axis_model import simulate, steady_rate
-from isp_twin.parameters import RateParams
+from isp_twin.parameters import RATE_LAYOUT, RateParams
 
 DT = 1e-3
 
@@ -75,7 +75,8 @@ def test_reversals_pass_through_rest_without_chatter(paper_params):
 
 def test_batch_equals_one_by_one(paper_params):
     p = paper_params.axis("inner_az").rate_params()
-    x = np.stack([p.to_vector(), p.to_vector() * np.tile([1.0, 1.1, 0.9, 1.0, 1.0], 4)])
+    factor = {"pole": 1.0, "gain": 1.1, "static": 0.9, "coulomb": 1.0, "alpha": 1.0}
+    x = np.stack([p.to_vector(), p.to_vector() * RATE_LAYOUT.per_field(factor)])
     batch = RateParams.from_vector(x)
     u = 950 * np.cos(2 * np.pi * 0.5 * np.arange(0, 2, DT)) - 200
     out = simulate(batch, u, DT, angle0=-0.01)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from isp_twin.errors import ParameterError, ResourceNotFound
-from isp_twin.parameters import REGIMES, load_parameters, save_parameters
+from isp_twin.parameters import RATE_LAYOUT, REGIMES, load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG
 
@@ -116,8 +116,8 @@ def test_identify_records_the_model_and_timing_it_fitted_with():
     integration, timing = Integration(6, True, False, True), Timing(0.75, True)
     result = IdentificationResult(
         rate=RateParams.from_vector(rate.to_vector()),
-        ci95=np.full(20, np.nan),
-        identifiable=np.zeros(20, dtype=bool),
+        ci95=np.full(RATE_LAYOUT.size, np.nan),
+        identifiable=np.zeros(RATE_LAYOUT.size, dtype=bool),
         visits=np.zeros(4, dtype=int),
         regime_identified=(True,) * 4,
         rmse_train={},

@@ -1,8 +1,9 @@
 """Re-identification of the axis model with one candidate effect added.
 
-A candidate's free parameters are the 20 rate-form parameters of Eq. 6
-(refined locally from the current ones) plus the effect's own (minus the
-ones it declares `frozen`). Start values of the effect come from its
+A candidate's free parameters are the rate-form parameters of Eq. 6
+(`RATE_LAYOUT`, refined locally from the current ones) plus the effect's own
+(minus the ones it declares `frozen`), one flat vector laid out by
+`CandidateLayout`. Start values of the effect come from its
 `guesses(context)`: all guesses are simulated in one batch and the best
 starts a bounded Levenberg-Marquardt (`fit.levenberg_marquardt`); periodic
 and discrete things (cogging period, delay, dead-zone width, resonance
@@ -20,7 +21,8 @@ from isp_twin.diagnosis.fit import FitResult, FitStatus, lm_steps, solve_many
 from isp_twin.diagnosis.residual import ResidualContext, residual_context
 from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
 from isp_twin.effects import effect_class
-from isp_twin.parameters import EffectSpec
+from isp_twin.parameters import RATE_LAYOUT, EffectSpec
+from isp_twin.rate_layout import CandidateLayout
 
 __all__ = [
     "BASELINE",
@@ -34,9 +36,9 @@ __all__ = [
 
 #: Name of the model without a new effect.
 BASELINE = "none"
-#: Positions of the four breakaway (static) parameters in the rate vector:
-#: scanned before the local refit (`fit.lm_steps`).
-STATIC_INDICES = (2, 7, 12, 17)
+#: Lower bounds of the rate-form fields, the same in every regime (all
+#: positive; the pole's upper bound 0.9999 keeps it a stable first order).
+_RATE_LOWER = {"pole": 0.05, "gain": 1e-12, "static": 1e-12, "coulomb": 1e-12, "alpha": 1e-9}
 #: Rate parameters refitted with the effect in the polish (`_polish_effects`).
 POLISH_RATE: tuple[int, ...] = ()
 
@@ -49,8 +51,9 @@ class CandidateFit:
         name: effect name, or `BASELINE`.
         params: fitted effect parameters (SI, unit in the name).
         ci95: their 95 % confidence half-widths (NaN for frozen ones).
-        rate_vector: refitted rate-form parameters, (20,) (`RateParams.to_vector`).
-        rate_ci95: their half-widths, (20,).
+        rate_vector: refitted rate-form parameters, (`RATE_LAYOUT.size`,)
+            (`RateParams.to_vector`).
+        rate_ci95: their half-widths, same shape.
         sse: training sum of squared residuals [(rad/s)^2].
         n_samples: training samples M.
         n_params: free parameters k.
@@ -83,14 +86,22 @@ class CandidateFit:
 
 
 def rate_bounds(x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Bounds and scales of the 20 rate-form parameters around a start (all positive)."""
-    x0 = np.asarray(x0, float).reshape(4, 5)
-    lower = np.tile([0.05, 1e-12, 1e-12, 1e-12, 1e-9], (4, 1))
-    upper = np.maximum(np.tile([0.9999, np.inf, np.inf, np.inf, np.inf], (4, 1)), 0)
-    upper[:, 1:] = np.maximum(x0[:, 1:] * 100.0, 1e-6)
+    """Bounds and scales of the rate-form parameters around a start (all positive).
+
+    Args:
+        x0: the start, shape (`RATE_LAYOUT.size`,).
+
+    Returns:
+        lower, upper, scale, each of ``x0``'s shape.
+    """
+    x0 = RATE_LAYOUT.as_table(np.asarray(x0, float))
+    pole = RATE_LAYOUT.field_index("pole")
+    lower = RATE_LAYOUT.per_field(_RATE_LOWER)
+    upper = np.maximum(x0 * 100.0, 1e-6)
+    upper[..., pole] = 0.9999
     scale = np.maximum(np.abs(x0), 1e-9)
-    scale[:, 0] = np.maximum(1.0 - x0[:, 0], 1e-3)  # the pole matters through 1 - a
-    return lower.ravel(), upper.ravel(), scale.ravel()
+    scale[..., pole] = np.maximum(1.0 - x0[..., pole], 1e-3)  # the pole matters through 1 - a
+    return lower, RATE_LAYOUT.from_table(upper), RATE_LAYOUT.from_table(scale)
 
 
 def _effect_scale(name: str, lo: float, hi: float, guess: float) -> float:
@@ -128,7 +139,8 @@ def fit_candidates(
 
     Args:
         stack: training runs.
-        rate_vector: current rate-form parameters, (20,); every fit starts here.
+        rate_vector: current rate-form parameters, (`RATE_LAYOUT.size`,);
+            every fit starts here.
         names: candidate effect names, `BASELINE` for the refit without one.
         fixed: effects already accepted (kept as they are).
         context: residual of the current model (for the effects' guesses);
@@ -157,7 +169,7 @@ def fit_candidates(
                     for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
                 )
             )
-            context = residual_context(stack, one, x_rate.reshape(4, 5)[:, 0])
+            context = residual_context(stack, one, RATE_LAYOUT.column(x_rate, "pole"))
         # Global step: every guess of every candidate in one batch.
         guesses = {}
         for n in need:
@@ -193,7 +205,7 @@ def fit_candidates(
         sc_e = np.array(
             [_effect_scale(p, lo, hi, g) for p, lo, hi, g in zip(free, lo_e, hi_e, x_e)]
         )
-        layouts.append((n, free, frozen, start))
+        layouts.append((n, CandidateLayout(RATE_LAYOUT, tuple(free)), frozen, start))
         x_n = np.asarray((rate_starts or {}).get(n, x_rate), float)
         lo_r, hi_r, sc_r = rate_bounds(x_n)
         bounds = tuple(np.concatenate(v) for v in ((lo_r, lo_e), (hi_r, hi_e), (sc_r, sc_e)))
@@ -203,41 +215,41 @@ def fit_candidates(
                 np.concatenate([x_n, x_e]),
                 *bounds,
                 max_iter=max_iter,
-                scan=STATIC_INDICES,
+                scan=RATE_LAYOUT.static_indices,
             )
         )
 
     def evaluate(reqs):
         batch = []
         for i, x in reqs:
-            n, free, frozen, start = layouts[i]
+            n, vec, frozen, start = layouts[i]
+            rate, eff = vec.split(x)
             if n == BASELINE:
-                batch.append((x[:, :20], None, {}))
+                batch.append((rate, None, {}))
                 continue
-            eff = {p: x[:, 20 + j] for j, p in enumerate(free)}
             eff.update({p: np.full(x.shape[0], start[p]) for p in frozen})
-            batch.append((x[:, :20], n, eff))
+            batch.append((rate, n, eff))
         return residuals_many(stack, batch, fixed)
 
     fits = solve_many(problems, evaluate)
     if polish:
         fits = _polish_effects(stack, layouts, fits, scales, max_iter, fixed)
     out = {}
-    for (n, free, frozen, start), fit in zip(layouts, fits):
+    for (n, vec, frozen, start), fit in zip(layouts, fits):
         if n == BASELINE:
-            out[n] = _result(n, fit, {}, {}, (), stack, fixed)
+            out[n] = _result(n, fit, {}, {}, vec, stack, fixed)
             continue
         cls = classes[n]
-        values = {p: float(fit.x[20 + j]) for j, p in enumerate(free)}
+        values = {p: float(v) for p, v in vec.effect_values(fit.x).items()}
         values.update({p: float(start[p]) for p in frozen})
-        ci = {p: float(fit.ci95[20 + j]) for j, p in enumerate(free)}
+        ci = {p: float(v) for p, v in vec.effect_values(fit.ci95).items()}
         ci.update({p: float("nan") for p in frozen})
         out[n] = _result(
             n,
             fit,
             {p: values[p] for p in cls.param_names},
             {p: ci[p] for p in cls.param_names},
-            free,
+            vec,
             stack,
             fixed,
         )
@@ -247,7 +259,7 @@ def fit_candidates(
 def _polish_effects(stack, layouts, fits, scales, max_iter, fixed) -> list[FitResult]:
     """Refit each candidate's free effect parameters alone, rate parameters held.
 
-    The joint fit's finite-difference Jacobian of the 20 rate parameters is
+    The joint fit's finite-difference Jacobian of the rate parameters is
     dominated by stick/slip events (a breakaway or a stop moving by a sample
     when a level moves by 0.1 %), so its steps in the effect parameters are
     damped away and it stops early. The LuGre bristle force is the case
@@ -258,10 +270,13 @@ def _polish_effects(stack, layouts, fits, scales, max_iter, fixed) -> list[FitRe
     is lower; its intervals stay those of the joint fit (which account for
     the rate parameters).
     """
-    todo = [i for i, (n, free, _, _) in enumerate(layouts) if n != BASELINE and free]
+    todo = [i for i, (n, vec, _, _) in enumerate(layouts) if n != BASELINE and vec.effect_params]
     if not todo:
         return list(fits)
-    sels = [np.r_[POLISH_RATE, 20 + np.arange(len(layouts[i][1]))].astype(int) for i in todo]
+    sels = [
+        np.r_[POLISH_RATE, np.arange(layouts[i][1].size)[layouts[i][1].effect_slice]].astype(int)
+        for i in todo
+    ]
     problems = [
         lm_steps(fits[i].x[sel], *(v[sel] for v in scales[i]), max_iter=max_iter)
         for i, sel in zip(todo, sels)
@@ -275,11 +290,10 @@ def _polish_effects(stack, layouts, fits, scales, max_iter, fixed) -> list[FitRe
     def evaluate(reqs):
         batch = []
         for k, x in reqs:
-            n, free, frozen, start = layouts[todo[k]]
-            xs = full(k, x)
-            eff = {p: xs[:, 20 + j] for j, p in enumerate(free)}
+            n, vec, frozen, start = layouts[todo[k]]
+            rate, eff = vec.split(full(k, x))
             eff.update({p: np.full(x.shape[0], start[p]) for p in frozen})
-            batch.append((xs[:, :20], n, eff))
+            batch.append((rate, n, eff))
         return residuals_many(stack, batch, fixed)
 
     out = list(fits)
@@ -296,16 +310,18 @@ def _polish_effects(stack, layouts, fits, scales, max_iter, fixed) -> list[FitRe
     return out
 
 
-def _result(name, fit: FitResult, params, ci, free, stack: RunStack, fixed) -> CandidateFit:
+def _result(
+    name, fit: FitResult, params, ci, vec: CandidateLayout, stack: RunStack, fixed
+) -> CandidateFit:
     m = stack.n_samples
-    k = 20 + len(free)
+    k = vec.size
     sse = max(fit.sse, 1e-300)
     return CandidateFit(
         name=name,
         params=params,
         ci95=ci,
-        rate_vector=fit.x[:20].copy(),
-        rate_ci95=fit.ci95[:20].copy(),
+        rate_vector=vec.rate_part(fit.x).copy(),
+        rate_ci95=vec.rate_part(fit.ci95).copy(),
         sse=float(fit.sse),
         n_samples=m,
         n_params=k,

@@ -124,7 +124,7 @@ def predict(
 
     Args:
         stack: the runs.
-        rate_vectors: rate-form parameters, shape (P, 20) (`RateParams.to_vector`).
+        rate_vectors: rate-form parameters, (P, `RATE_LAYOUT.size`) (`RateParams.to_vector`).
         effects: (name, parameter name -> array (P,)) of effects that vary with the set.
         fixed: effects with the same parameters for every set.
 
@@ -194,8 +194,8 @@ def residuals_many(
 
     Args:
         stack: the runs.
-        requests: (rate vectors (P_i, 20), effect name or None, effect
-            parameter name -> (P_i,)) per request.
+        requests: (rate vectors (P_i, `RATE_LAYOUT.size`), effect name or
+            None, effect parameter name -> (P_i,)) per request.
         fixed: effects shared by all.
 
     Returns:
