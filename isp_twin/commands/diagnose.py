@@ -182,6 +182,11 @@ def execute(args: argparse.Namespace) -> int:
             f"tentative (not adopted): {', '.join(diag.tentative)} passed the acceptance rule "
             "but left the held-out error above the noise"
         )
+    if diag.equivalent:
+        say(
+            f"ambiguous: the data cannot tell {diag.selected_effect} apart from "
+            f"{', '.join(diag.equivalent)} (alike over the travelled angles, equally good held out)"
+        )
     builtins.print(result["verdict"])
     if diag.selected_effect == "none":
         say("no missing effect found")
