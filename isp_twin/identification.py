@@ -58,7 +58,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from isp_twin.effects import make_effect
+from isp_twin.effects import Effect, make_effect
+from isp_twin.effects.batched import make_batched
 from isp_twin.errors import DataError, ParameterError
 from isp_twin.friction import regime_index
 from isp_twin.measured import MeasuredData
@@ -89,6 +90,9 @@ __all__ = [
     "side_angle",
     "regime_visits",
     "equation_error_estimate",
+    "JOINT_FORMS",
+    "JointEstimate",
+    "joint_equation_error_estimate",
     "simulate_data",
     "residuals",
     "rmse",
@@ -526,6 +530,307 @@ def equation_error_estimate(
     return RateParams.from_vector(x.ravel())
 
 
+#: Effects whose acceleration is linear in its strengths for given shape
+#: parameters: name -> (shape parameters searched on a grid, strength columns).
+_LINEAR_TORQUES = ("cogging", "unbalance", "cable_spring")
+#: Effects acting on the command, their one parameter searched on a grid.
+_COMMAND_EFFECTS = {
+    "input_delay": "delay_s",
+    "deadzone": "width_digits",
+    "saturation": "limit_digits",
+}
+
+
+@dataclass(frozen=True)
+class _Rows:
+    """The one-step-ahead regression rows of the runs (`equation_error_estimate`).
+
+    Arrays of shape (K,) over the usable samples of all runs: the regime, the
+    rate before and after the step [rad/s], the sign, the speed, 1 on
+    breakaway rows, the angle of the half-plane [rad], and the index of the
+    sample in the concatenated (N-1)-long steps of the runs (to pick command
+    columns transformed by a command effect).
+    """
+
+    regime: np.ndarray
+    w0: np.ndarray
+    w1: np.ndarray
+    u0: np.ndarray
+    sgn: np.ndarray
+    speed: np.ndarray
+    brk: np.ndarray
+    y: np.ndarray
+    step: np.ndarray
+
+
+def _regression_rows(data, side_source, rest, effects) -> _Rows:
+    """Moving and breakaway samples of all runs, known `effects` taken out."""
+    parts = []
+    offset = 0
+    for d in data:
+        w0, w1 = d.omega[:-1], d.omega[1:]
+        y = side_angle(d, side_source)[:-1]
+        u0, more = _effect_drive(d, y, effects)
+        w1 = w1 - more
+        moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
+        # A breakaway moves the way the total drive (command and known
+        # effects) pushes: its direction is that of the motion it starts.
+        breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest)
+        use = moving | breakaway
+        regime = np.where(moving, regime_index(y, w0), regime_index(y, w1))
+        parts.append(
+            (
+                regime[use],
+                np.where(moving, w0, 0.0)[use],
+                w1[use],
+                u0[use],
+                np.where(moving, np.sign(w0), np.sign(w1))[use],
+                np.where(moving, np.abs(w0), 0.0)[use],
+                breakaway[use].astype(float),
+                y[use],
+                offset + np.flatnonzero(use),
+            )
+        )
+        offset += w0.size
+    cols = [np.concatenate([p[i] for p in parts]) for i in range(9)]
+    return _Rows(*cols)
+
+
+#: Effects `joint_equation_error_estimate` estimates with the base.
+JOINT_FORMS: tuple[str, ...] = _LINEAR_TORQUES + tuple(_COMMAND_EFFECTS)
+
+
+@dataclass(frozen=True)
+class JointEstimate:
+    """Base and one effect estimated together (`joint_equation_error_estimate`).
+
+    Attributes:
+        rate: rate-form parameters of Eq. 6 (`RateParams`).
+        effect: the effect with its estimated parameters (None: base alone).
+        sse: one-step-ahead sum of squared errors with the effect [(rad/s)^2].
+        sse_base: the same without the effect (same rows and alphas) [(rad/s)^2].
+    """
+
+    rate: RateParams
+    effect: EffectSpec | None
+    sse: float
+    sse_base: float
+
+
+def joint_equation_error_estimate(
+    data: Sequence[MeasuredData],
+    prior: RateParams,
+    candidate: EffectSpec,
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    min_samples: int = 50,
+    effects: Sequence[EffectSpec] = (),
+    passes: int = 2,
+) -> JointEstimate:
+    """Base and candidate effect estimated together by one-step-ahead least squares.
+
+    `equation_error_estimate` fits each regime alone with known effects taken
+    out; here the candidate's unknown parameters join the regression, so
+    they are not estimated on a base that has absorbed the effect into its
+    friction levels. One block problem: each regime's columns (rate, command,
+    Coulomb and Stribeck signs, with the regime's alpha fixed at its best of
+    the per-regime grid) on its own rows, the effect's columns shared by all
+    rows; bounded as in `equation_error_estimate` (bvls on unit-norm columns).
+
+    * torque effects linear in their strengths: cogging
+      ``T (s sin(2 pi y/P) + c cos(2 pi y/P))`` with the period P on a grid of
+      +-3 % around `candidate`'s (a residual periodogram finds it; the
+      strengths come from here), unbalance ``T (s sin y + c cos y)``, cable
+      spring ``-T k y`` (its offset is a constant torque, exactly a shift of
+      the per-direction friction levels: held at `candidate`'s);
+    * command effects (input delay, dead zone, saturation): the command
+      column transformed by the effect on a grid of its parameter;
+    * others (no linear form): `candidate` held, base re-estimated.
+
+    Alphas and effect are estimated in turn `passes` times (alphas with the
+    effect held, then the block problem). Returns the rate parameters, the
+    candidate with the estimated parameters (others as given) and both
+    equation-error costs (`JointEstimate`).
+    """
+    from scipy.optimize import lsq_linear
+
+    name = candidate.name
+    current = EffectSpec(name, dict(candidate.params))
+    fixed = tuple(effects)
+    if name not in _LINEAR_TORQUES and name not in _COMMAND_EFFECTS:
+        x = equation_error_estimate(
+            data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
+        )
+        return JointEstimate(x, current, float("nan"), float("nan"))
+    noise = rate_noise(data)
+    rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
+    dt = data[0].dt
+    rows = _regression_rows(data, side_source, rest, fixed)
+    regimes = [r for r in range(4) if np.sum(rows.regime == r) >= min_samples]
+    if not regimes:
+        return JointEstimate(prior, current, float("nan"), float("nan"))
+    # The command of every step after the fixed effects [digits], (sum N-1,).
+    u_all = np.concatenate(
+        [_effect_drive(d, side_angle(d, side_source)[:-1], fixed)[0] for d in data]
+    )
+    u_peak = float(np.max(np.abs(u_all))) or 1.0
+    x = prior.to_vector().reshape(4, 5).copy()
+
+    def torque_columns(shape: float) -> np.ndarray:
+        y = rows.y
+        if name == "cogging":
+            ph = 2.0 * np.pi * y / shape
+            return dt * np.column_stack([np.sin(ph), np.cos(ph)])
+        if name == "unbalance":
+            return dt * np.column_stack([np.sin(y), np.cos(y)])
+        return dt * (-y)[:, None]
+
+    def command_column(values: np.ndarray) -> np.ndarray:
+        """The command after the effect for each grid value, (G, sum N-1)."""
+        pname = _COMMAND_EFFECTS[name]
+        out = np.empty((values.size, u_all.size))
+        start = 0
+        for d in data:
+            n = len(d) - 1
+            eff = make_batched(name, {pname: values}, dt)
+            seg = u_all[start : start + n]
+            for k in range(n):
+                out[:, start + k] = eff.command(np.full(values.size, seg[k]))
+            start += n
+        return out
+
+    use = np.isin(rows.regime, regimes)
+    in_regime = [rows.regime[use] == r for r in regimes]
+    n_r = len(regimes)
+
+    def block(alpha: np.ndarray, w1: np.ndarray):
+        """The block problem at these alphas: a solver of (command, effect columns).
+
+        Columns per regime: rate, -sign, -sign * Stribeck shape (fixed here,
+        their Gram matrix formed once), then the command per regime and the
+        shared effect columns (varying over the grid); the bounded problem is
+        solved on the Cholesky factor of the Gram matrix of ``[A | w1]``
+        (``||A x - w1||^2 = ||R x - q||^2 + rest^2``: ~20 rows instead of
+        ~10^4), a relative 1e-12 ridge keeping it defined for collinear
+        columns. Columns are scaled to unit norm (u in digits, the rest rad/s).
+        """
+        f_mat = np.zeros((int(use.sum()), 3 * n_r))
+        w0, sgn, speed, brk = rows.w0[use], rows.sgn[use], rows.speed[use], rows.brk[use]
+        for i, r in enumerate(regimes):
+            m = in_regime[i]
+            shape = np.where(brk[m] > 0, 1.0, np.exp(-alpha[r] * speed[m]))
+            f_mat[m, 3 * i : 3 * i + 3] = np.column_stack([w0[m], -sgn[m], -sgn[m] * shape])
+        f_norm = np.linalg.norm(f_mat, axis=0)
+        f_norm = np.where(f_norm > 0, f_norm, 1.0)
+        f_mat /= f_norm
+        target = w1[use]
+        ff, ft, tt = f_mat.T @ f_mat, f_mat.T @ target, float(target @ target)
+
+        def solve(u0: np.ndarray, extra: np.ndarray):
+            """(sse, regime coefficients (n_r, 4) as (a, gain, Tc, Ts - Tc), effect coefficients)."""
+            k_e = extra.shape[1]
+            v_mat = np.zeros((f_mat.shape[0], n_r + k_e))
+            u0 = u0[use]
+            for i in range(n_r):
+                v_mat[in_regime[i], i] = u0[in_regime[i]]
+            v_mat[:, n_r:] = extra[use]
+            v_norm = np.linalg.norm(v_mat, axis=0)
+            v_norm = np.where(v_norm > 0, v_norm, 1.0)
+            v_mat /= v_norm
+            fv, vv, vt = f_mat.T @ v_mat, v_mat.T @ v_mat, v_mat.T @ target
+            n_c = 4 * n_r + k_e
+            gram = np.empty((n_c + 1, n_c + 1))
+            nf = 3 * n_r
+            gram[:nf, :nf], gram[:nf, nf:n_c], gram[nf:n_c, nf:n_c] = ff, fv, vv
+            gram[nf:n_c, :nf] = fv.T
+            gram[:nf, n_c], gram[nf:n_c, n_c], gram[n_c, n_c] = ft, vt, tt
+            gram[n_c, :n_c] = gram[:n_c, n_c]
+            gram[np.diag_indices_from(gram)] += 1e-12 * np.trace(gram)
+            tri = np.linalg.cholesky(gram).T
+            norm = np.r_[f_norm, v_norm]
+            lo = np.r_[np.zeros(nf + n_r), np.full(k_e, -np.inf)]
+            hi = np.full(n_c, np.inf)
+            hi[0:nf:3] = 1.0 - 1e-9
+            fit = lsq_linear(
+                tri[:n_c, :n_c], tri[:n_c, n_c], bounds=(lo * norm, hi * norm), method="bvls"
+            )
+            coef = fit.x / norm
+            sse = float(np.sum(fit.fun**2) + tri[n_c, n_c] ** 2)
+            fixed_c = coef[:nf].reshape(n_r, 3)
+            reg = np.column_stack(
+                [fixed_c[:, 0], coef[nf : nf + n_r], fixed_c[:, 1], fixed_c[:, 2]]
+            )
+            return sse, reg, coef[nf + n_r :]
+
+        return solve
+
+    cls = make_effect(current, dt).__class__
+    for _ in range(max(passes, 1)):
+        # Alphas (and a first base) with the current effect held.
+        base = (
+            equation_error_estimate(
+                data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
+            )
+            .to_vector()
+            .reshape(4, 5)
+        )
+        alpha = base[:, 4]
+        params = dict(current.params)
+        best = None
+        if name in _LINEAR_TORQUES:
+            w1 = rows.w1.copy()
+            if name == "cable_spring":
+                w1 = w1 - dt * params["offset_rad_s2"]
+            u0 = u_all[rows.step]
+            if name == "cogging":
+                p0 = params["period_rad"]
+                shapes = p0 * (1.0 + np.linspace(-0.03, 0.03, 61))
+            else:
+                shapes = np.array([0.0])
+            solve = block(alpha, w1)
+            for shape in shapes:
+                sse, reg, eff = solve(u0, torque_columns(shape))
+                if best is None or sse < best[0]:
+                    best = (sse, reg, eff, shape)
+            _, reg, eff, shape = best
+            if name == "cogging":
+                amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
+                params.update(amplitude_rad_s2=amp, period_rad=float(shape), phase_rad=ph)
+            elif name == "unbalance":
+                amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
+                params.update(amplitude_rad_s2=amp, phase_rad=ph)
+            else:
+                params.update(stiffness_1_s2=float(eff[0]))
+        else:
+            pname = _COMMAND_EFFECTS[name]
+            if name == "input_delay":
+                grid = np.arange(0.0, 40.5, 0.5) * dt
+            elif name == "deadzone":
+                grid = np.linspace(0.0, 0.4, 81) * u_peak
+            else:
+                grid = np.linspace(0.3, 1.0, 71) * u_peak
+            grid = np.union1d(grid, [params[pname]])
+            lo_b, hi_b = cls.bounds[pname]
+            grid = grid[(grid >= lo_b) & (grid <= hi_b)]
+            columns = command_column(grid)
+            solve = block(alpha, rows.w1)
+            for value, u_col in zip(grid, columns):
+                sse, reg, eff = solve(u_col[rows.step], np.zeros((rows.w0.size, 0)))
+                if best is None or sse < best[0]:
+                    best = (sse, reg, eff, value)
+            _, reg, eff, value = best
+            params[pname] = float(value)
+        for i, r in enumerate(regimes):
+            a, g, c, s_minus_c = reg[i]
+            a = min(max(a, 1e-6), 1.0 - 1e-9)
+            x[r] = (a, max(g, 1e-12), c + s_minus_c + 1e-12, c + 1e-12, alpha[r])
+        bounded = {p: float(np.clip(v, *cls.bounds[p])) for p, v in params.items()}
+        current = EffectSpec(name, bounded)
+        sse = best[0]
+    sse_base = block(alpha, rows.w1)(u_all[rows.step], np.zeros((rows.w0.size, 0)))[0]
+    return JointEstimate(RateParams.from_vector(x.ravel()), current, sse, sse_base)
+
+
 def rate_noise(data: Sequence[MeasuredData]) -> float:
     """White rate-noise standard deviation of the measured runs [rad/s] (`noise_floor_of`)."""
     return noise_floor_of([d.omega for d in data])
@@ -546,6 +851,13 @@ def _effect_drive(
     if not effects:
         return u, more
     built = [make_effect(e, d.dt) for e in effects]
+    if all(type(e).reset is Effect.reset for e in built):
+        # Effects without state are plain functions of the sample: whole run at once.
+        for e in built:
+            u = np.asarray(e.command(u), dtype=float) * np.ones_like(more)
+        for e in built:
+            more = more + np.asarray(e.acceleration(side_y[: u.size], d.omega[: u.size])) * d.dt
+        return u, more
     for e in built:
         e.reset()
     for k in range(u.size):

@@ -239,6 +239,11 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
             f"tentative (not adopted): {', '.join(diag.tentative)} passed the acceptance rule "
             "but left the held-out error above the noise"
         )
+    if diag.equivalent:
+        say(
+            f"ambiguous: the data cannot tell {diag.selected_effect} apart from "
+            f"{', '.join(diag.equivalent)} (alike over the travelled angles, equally good held out)"
+        )
     builtins.print(result["verdict"])
     if diag.selected_effect == "none":
         say("no missing effect found")
