@@ -331,6 +331,10 @@ LONG_FUNCTIONS = {
     # per-iteration log) by their own issue; split there, not here.
     "isp_twin/identification.py::identify",
     "isp_twin/identification.py::equation_error_estimate",
+    # New with issue 8's joint start (base and effect in one regression): its
+    # grid, alternation and block solve become stages with the one estimation
+    # engine (issue 8 item 5), not before.
+    "isp_twin/identification.py::joint_equation_error_estimate",
     "isp_twin/identification_report.py::write_report",
     "isp_twin/identification_report.py::result_json",
     "isp_twin/diagnosis/search.py::diagnose",
