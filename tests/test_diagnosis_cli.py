@@ -167,8 +167,8 @@ def test_the_updated_file_records_the_model_and_a_second_diagnosis_uses_it(case,
         "side_shift_steps": timing.side_shift,
     }
 
-    # The record without the effect (diagnose of a file whose axis carries
-    # effects fails today in diagnosis/search.py: `fixed` passed as `effects`).
+    # The record without the effect (the file with it is diagnosed in
+    # test_a_file_whose_axis_carries_an_effect_is_diagnosed_with_it_held).
     from dataclasses import replace
 
     from isp_twin.parameters import save_parameters
@@ -204,3 +204,22 @@ def test_the_updated_file_records_the_model_and_a_second_diagnosis_uses_it(case,
         refitted = written.regimes != plain.regimes or written.effects != plain.effects
         assert written.fitted_with == (plain.fitted_with if not refitted else written.fitted_with)
         assert written.fitted_with.substeps == (m if refitted else 1)
+
+
+def test_a_file_whose_axis_carries_an_effect_is_diagnosed_with_it_held(case, capsys):
+    # The updated file holds the cogging found: a second diagnosis keeps it as
+    # part of the model (it once went in as a candidate's parameters: a
+    # TypeError traceback) and, with it, finds nothing more to add.
+    _, folder, files, out, _ = case
+    assert [e.name for e in load_parameters(out).axis(AXIS).effects] == ["cogging"]
+    result = folder / "second.json"
+    argv = ["diagnose", str(files[0]), "--holdout", str(files[2]), "--params", str(out)]
+    argv += ["--axis", AXIS, "--candidates", "torque_offset", "--max-rounds", "1"]
+    argv += ["--no-recording", "--report", str(folder / "second"), "--json", str(result)]
+    argv += ["--out", str(folder / "second.yaml")]
+    assert main(argv) == 0
+    capsys.readouterr()
+    second = json.loads(result.read_text())
+    assert second["selected_effect"] == "none"
+    kept = load_parameters(folder / "second.yaml").axis(AXIS).effects
+    assert [e.name for e in kept] == ["cogging"]
