@@ -10,7 +10,7 @@ step (issue 9 targets: single run <= 3.0, batched <= 2.0 per run):
 * single run: `ClosedLoop.run` per sample (the compiled loop, and the Python
   blocks it replaces);
 * batched: `--batch` runs of a sweep (seeds 1..B) through
-  `isp_twin.sweep.execute.run_batch`, as one Dask task of ``isp-twin sweep
+  `isp_twin.experiments.sweep.execute.run_batch`, as one Dask task of ``isp-twin sweep
   --batch B`` runs them: wall time per sample including each run's set-up
   (scenario, twin, controllers) and its metrics.
 
@@ -26,10 +26,10 @@ from pathlib import Path
 
 import mujoco
 
-from isp_twin.closed_loop import ClosedLoop
-from isp_twin.scenario import load_scenario
-from isp_twin.sweep.design import load_sweep
-from isp_twin.sweep.execute import run_batch
+from isp_twin.experiments.closed_loop import ClosedLoop
+from isp_twin.experiments.scenario import load_scenario
+from isp_twin.experiments.sweep.design import load_sweep
+from isp_twin.experiments.sweep.execute import run_batch
 
 
 def main() -> None:

@@ -21,7 +21,7 @@ from pathlib import Path
 # data location, the column mapping and the catalogue prior.
 from identify_hsm150 import DATA, data_files, prior, run_cli
 
-from isp_twin.parameters import save_parameters
+from isp_twin.model.parameters import save_parameters
 
 TRAIN = ["idf_neg_0.04_1", "idf_pos_0.06_1", "idf_neg_0.05_1", "idf_pos_0.07_1"]
 HOLDOUT = ["idf_neg_0.045_1", "idf_pos_0.065_1"]

@@ -137,7 +137,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
     """Draw, write, identify, diagnose one axis; the record stored in the database."""
     import yaml
 
-    from isp_twin.measured import MeasuredData, save_measured
+    from isp_twin.identification.measured import MeasuredData, save_measured
     from isp_twin.reference import design_experiment
 
     folder = workdir / case / f"seed{seed}"

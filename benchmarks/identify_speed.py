@@ -1,8 +1,8 @@
 """Benchmark: identify all 24 parameters of the inner azimuth axis (Table 2)
-from the four 2000-sample open-loop sets of `isp_twin.experiment.PAPER_SET`.
+from the four 2000-sample open-loop sets of `isp_twin.identification.experiments.PAPER_SET`.
 
 Prints the wall time and the recovery error of the 20 identifiable rate-form
-quantities (b is fixed to the prior, see `isp_twin.identification`), for
+quantities (b is fixed to the prior, see `isp_twin.identification.fit`), for
 noise-free data and for realistic sensor noise (0.02 deg/s gyro, 16-bit
 resolver). The search starts from a prior that is 20-40 % off.
 
@@ -19,11 +19,11 @@ import time
 
 import numpy as np
 
-from isp_twin.experiment import GYRO_NOISE_DEG_S, RESOLVER_LSB_DEG, generate_set
-from isp_twin.identification import Settings, identify
-from isp_twin.parameters import load_parameters
+from isp_twin.identification.experiments import GYRO_NOISE_DEG_S, RESOLVER_LSB_DEG, generate_set
+from isp_twin.identification.fit import Settings, identify
+from isp_twin.model.parameters import load_parameters
+from isp_twin.model.substep_model import EQ6
 from isp_twin.resources import default_parameters_path
-from isp_twin.substep_model import EQ6
 from isp_twin.units import DEG
 
 

@@ -31,10 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from isp_twin.paper import TABLE4_ACTUAL, TABLE6, relative_reduction
-from isp_twin.parameters import EffectSpec, ParameterSet, load_parameters
+from isp_twin.experiments.paper import TABLE4_ACTUAL, TABLE6, relative_reduction
+from isp_twin.experiments.scenario import load_scenario, parse_scenario, scenario_to_raw
+from isp_twin.model.parameters import EffectSpec, ParameterSet, load_parameters
 from isp_twin.resources import model_path
-from isp_twin.scenario import load_scenario, parse_scenario, scenario_to_raw
 from isp_twin.units import DEG
 
 CELLS = {
@@ -196,8 +196,8 @@ def _set(raw: dict, path: str, value) -> None:
 
 def _job(job):
     cand, name, nfc, seed, xml = job
-    import isp_twin.twin as twin_module
-    from isp_twin.closed_loop import ClosedLoop
+    import isp_twin.model.twin as twin_module
+    from isp_twin.experiments.closed_loop import ClosedLoop
 
     if xml is not None:
         twin_module.default_model_path = lambda: Path(xml)

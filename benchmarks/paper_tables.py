@@ -4,7 +4,7 @@ Writes docs/paper_vs_twin.md (the same text as `isp-twin report --output ...`)
 and prints it, with the wall time. With ``--scan-scale`` it instead prints the
 calibration scan of docs/calibration.md: the Table 4 grid (PI) for each gyro
 scale [counts per deg/s]. With ``--scan`` it prints, for every combination of
-the given scenario knobs (dotted field paths of `isp_twin.scenario.Scenario`),
+the given scenario knobs (dotted field paths of `isp_twin.experiments.scenario.Scenario`),
 the three 1/6 Hz cells of Table 4 (PI, the only cells the calibration may be
 fitted on) and their sum of squared errors against the paper's measured J;
 ``--validate`` adds, for the same combinations, the 0.5 Hz cells and the
@@ -28,13 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
-from isp_twin.calibration import calibration_markdown, evaluate_cells
-from isp_twin.campaign import TABLE4_SCENARIOS
-from isp_twin.closed_loop import run_scenario
+from isp_twin.experiments.calibration import calibration_markdown, evaluate_cells
+from isp_twin.experiments.campaign import TABLE4_SCENARIOS
+from isp_twin.experiments.closed_loop import run_scenario
+from isp_twin.experiments.paper import TABLE4_ACTUAL, TABLE5, TABLE6, relative_reduction
+from isp_twin.experiments.rig import resolve_rig
+from isp_twin.experiments.scenario import Scenario, load_scenario
 from isp_twin.output.files import write_text_atomic
-from isp_twin.paper import TABLE4_ACTUAL, TABLE5, TABLE6, relative_reduction
-from isp_twin.rig import resolve_rig
-from isp_twin.scenario import Scenario, load_scenario
 
 Knobs = tuple[tuple[str, float], ...]
 

@@ -8,7 +8,7 @@ Prints, from one measurement each:
 
 1. the time to record a synthetic 60 s, 1 kHz closed-loop-like run (all
    inner/outer signals and the 7 joints), per simulated second;
-2. if `isp_twin.closed_loop.run_scenario` exists, the scenario run without
+2. if `isp_twin.experiments.closed_loop.run_scenario` exists, the scenario run without
    recording and the time to record its result, and the ratio.
 """
 
@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
+from isp_twin.experiments.results import RunResult
 from isp_twin.output.kinematics import JOINTS
 from isp_twin.output.readback import verify_recording
 from isp_twin.output.recording import record_run
-from isp_twin.results import RunResult
 from isp_twin.units import DEG
 
 DT = 1e-3
@@ -74,8 +74,8 @@ def main() -> None:
         )
 
         try:
-            from isp_twin.closed_loop import run_scenario
-            from isp_twin.scenario import load_scenario
+            from isp_twin.experiments.closed_loop import run_scenario
+            from isp_twin.experiments.scenario import load_scenario
         except ImportError as exc:
             print(f"no closed-loop runner ({exc}); only the figure above is measured")
             return

@@ -1,4 +1,4 @@
-"""Speed of the sub-stepped model (`isp_twin.substep_model`), the cost of every
+"""Speed of the sub-stepped model (`isp_twin.model.substep_model`), the cost of every
 identify and diagnose trial, measured in one run as ratios (the machine is shared).
 
 Kernel: a batch of P parameter sets (the truth's rate form of a reference axis,
@@ -43,16 +43,16 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 from substep_kernel_reference import advance_row_by_row  # noqa: E402
 
-from isp_twin.identification import Timing, side_angle  # noqa: E402
-from isp_twin.measured import MeasuredData  # noqa: E402
-from isp_twin.parameters import RATE_LAYOUT, RateParams  # noqa: E402
-from isp_twin.reference import design_experiment  # noqa: E402
-from isp_twin.substep_model import (  # noqa: E402
+from isp_twin.identification.fit import Timing, side_angle  # noqa: E402
+from isp_twin.identification.measured import MeasuredData  # noqa: E402
+from isp_twin.model.parameters import RATE_LAYOUT, RateParams  # noqa: E402
+from isp_twin.model.substep_model import (  # noqa: E402
     DEFAULT_INTEGRATION,
     _advance_blocks,
     _advance_rows,
     _substep_table,
 )
+from isp_twin.reference import design_experiment  # noqa: E402
 
 
 def kernel_inputs(seed: int, n_sets: int):

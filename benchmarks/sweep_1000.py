@@ -49,14 +49,14 @@ def main() -> None:
     args = ap.parse_args()
     load_before = os.getloadavg()  # the machine may be shared: say how busy it was
     # The reference: one run in this process, now (the machine may be shared).
-    from isp_twin.closed_loop import run_scenario
-    from isp_twin.scenario import load_scenario
+    from isp_twin.experiments.closed_loop import run_scenario
+    from isp_twin.experiments.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
     if args.duration is not None:
         from dataclasses import replace
 
-        from isp_twin.scenario import Metrics
+        from isp_twin.experiments.scenario import Metrics
 
         scenario = replace(scenario, duration_s=args.duration, metrics=Metrics(skip_s=0.0))
     run_scenario(scenario)  # the first run also loads (or compiles) the closed-loop kernel

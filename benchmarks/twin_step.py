@@ -15,9 +15,9 @@ import time
 import mujoco
 import numpy as np
 
-from isp_twin.parameters import load_parameters
+from isp_twin.model.parameters import load_parameters
+from isp_twin.model.twin import Twin
 from isp_twin.resources import default_parameters_path
-from isp_twin.twin import Twin
 
 STEPS = 4000
 REPEATS = 7

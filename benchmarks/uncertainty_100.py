@@ -29,8 +29,8 @@ def main() -> None:
     ap.add_argument("--oat", action="store_true", help="also the one-at-a-time sweep")
     args = ap.parse_args()
     from isp_twin.cli import main as cli
-    from isp_twin.closed_loop import run_scenario
-    from isp_twin.scenario import load_scenario
+    from isp_twin.experiments.closed_loop import run_scenario
+    from isp_twin.experiments.scenario import load_scenario
 
     start = time.perf_counter()
     run_scenario(load_scenario(args.scenario))

@@ -13,7 +13,7 @@ Names follow the hardware (STYLE.md): the four gimbals ``outer_az``,
 A side of the angle (paper Fig. 3) is an index, `SIDE_R` or `SIDE_L`, in
 the code; its letter (`SIDES`) is for output only (report keys, labels).
 Which data a fit reads the side from (the measured angle, or a side fixed
-for a free-spinning motor) is a different thing: `isp_twin.identification`
+for a free-spinning motor) is a different thing: `isp_twin.identification.fit`
 calls it the side source.
 """
 
@@ -56,7 +56,7 @@ SIDE_R, SIDE_L = 0, 1
 #: drive's at rest; zero counts as +).
 DIRECTIONS: tuple[str, ...] = ("+", "-")
 #: The friction regimes in the order of the paper's parameter vector X
-#: (Eq. 8): index = 2 * side + direction (`isp_twin.friction.regime_of`).
+#: (Eq. 8): index = 2 * side + direction (`isp_twin.model.friction.regime_of`).
 REGIMES: tuple[str, ...] = tuple(s + d for s in SIDES for d in DIRECTIONS)
 
 

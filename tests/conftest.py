@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from isp_twin.parameters import load_parameters
+from isp_twin.model.parameters import load_parameters
 from isp_twin.resources import default_parameters_path
 
 

@@ -1,11 +1,11 @@
 """The sub-step kernel as it was before its rows were interleaved and run in
-parallel (`isp_twin.substep_model` at commit 9cc08c3): one row after the other,
+parallel (`isp_twin.model.substep_model` at commit 9cc08c3): one row after the other,
 the obvious loop. `tests/test_substep_model.py` checks the fast kernel against
 it bit for bit. Not cached: compiled once per test session."""
 
 from numba import njit
 
-from isp_twin import friction_compiled as law
+from isp_twin.model import friction_compiled as law
 
 
 @njit(nogil=True)

@@ -6,14 +6,17 @@
   layout and its read-back);
 * `isp_twin.control` (the controller blocks) imports neither the twin nor the
   scenario nor the closed loop: it is plain math, testable alone;
-* `isp_twin.friction` (Eq. 5, compiled by numba as written) uses only the
+* the packages follow the pipeline (`PIPELINE`): model, control, experiments,
+  identification, output, diagnosis, commands; each imports only from those
+  before it and the shared base, and the reference simulator from none;
+* `isp_twin.model.friction` (Eq. 5, compiled by numba as written) uses only the
   math module, numpy and the vocabulary's side indices;
 * the names of the gimbal axes, turntable joints and friction regimes are
   listed once, in `isp_twin.vocabulary`: a tuple, list or set literal holding
   two or more of them anywhere else in the package is a restatement (the
   independent reference simulator, `isp_twin.reference`, writes the regime
   order again on purpose and a test compares it);
-* effects are looked up only through `isp_twin.effects.effect_class` (no
+* effects are looked up only through `isp_twin.model.effects.effect_class` (no
   ``EFFECTS[...]`` outside the registry), and YAML is read only by
   `isp_twin.input_files.load_yaml`.
 
@@ -21,7 +24,7 @@ And every function stays under 60 lines (an orchestrator reads as named
 stages) except those on a commented allow-list that can only shrink.
 
 An import counts wherever it is written (module top, inside a function, a
-relative import, ``from isp_twin import twin``, ``importlib.import_module``).
+relative import, ``from isp_twin.model import twin``, ``importlib.import_module``).
 """
 
 from __future__ import annotations
@@ -38,23 +41,51 @@ PACKAGE = Path(__file__).resolve().parents[1] / "isp_twin"
 #: Third-party module -> the files (relative to the repository) allowed to import it;
 #: a name ending in "/" allows every file below that folder.
 CONFINED = {
-    "mujoco": {"isp_twin/twin.py", "isp_twin/closed_loop_kernel.py"},
+    "mujoco": {"isp_twin/model/twin.py", "isp_twin/experiments/closed_loop_kernel.py"},
     "rerun": {"isp_twin/output/"},
 }
 #: Package directory -> modules none of its files may import.
 FORBIDDEN = {
     "isp_twin/control/": (
-        "isp_twin.twin",
-        "isp_twin.scenario",
-        "isp_twin.closed_loop",
-        "isp_twin.closed_loop_kernel",
+        "isp_twin.model.twin",
+        "isp_twin.experiments.scenario",
+        "isp_twin.experiments.closed_loop",
+        "isp_twin.experiments.closed_loop_kernel",
         "mujoco",
     ),
 }
+#: The pipeline, in order: a package imports only from those before it (and
+#: from the shared base: errors, units, vocabulary, resources, input_files,
+#: and output.files, the atomic writing every stage uses). output (the
+#: recorder and its layout) sits after the experiments whose runs it draws
+#: and before the diagnosis that records its residuals.
+PIPELINE = (
+    "model",
+    "control",
+    "experiments",
+    "identification",
+    "output",
+    "diagnosis",
+    "commands",
+)
+for _i, _package in enumerate(PIPELINE):
+    FORBIDDEN.setdefault(f"isp_twin/{_package}/", ())
+    FORBIDDEN[f"isp_twin/{_package}/"] += tuple(
+        f"isp_twin.{later}" for later in PIPELINE[_i + 1 :] if later != "output"
+    ) + (
+        ("isp_twin.output.recording", "isp_twin.output.layout", "isp_twin.output.rerun_writer")
+        if _i < PIPELINE.index("output")
+        else ()
+    )
+#: The independent reference simulator shares no code with the model it judges.
+FORBIDDEN["isp_twin/reference/"] = tuple(f"isp_twin.{p}" for p in PIPELINE if p != "commands") + (
+    "isp_twin.vocabulary",
+)
+
 #: File -> the only modules it may import (the vocabulary: names only, so
 #: that everything, Eq. 5 included, can import it).
 ONLY = {
-    "isp_twin/friction.py": ("__future__", "math", "numpy", "isp_twin.vocabulary"),
+    "isp_twin/model/friction.py": ("__future__", "math", "numpy", "isp_twin.vocabulary"),
     "isp_twin/vocabulary.py": ("__future__", "isp_twin.errors"),
 }
 
@@ -148,21 +179,30 @@ def test_the_rules_name_files_that_exist():
 @pytest.mark.parametrize(
     "rel, source",
     [
-        ("isp_twin/metrics.py", "import mujoco\n"),
-        ("isp_twin/metrics.py", "def f():\n    from mujoco import mjtObj\n"),
-        ("isp_twin/metrics.py", "import importlib\nimportlib.import_module('mujoco')\n"),
+        ("isp_twin/experiments/metrics.py", "import mujoco\n"),
+        ("isp_twin/experiments/metrics.py", "def f():\n    from mujoco import mjtObj\n"),
+        (
+            "isp_twin/experiments/metrics.py",
+            "import importlib\nimportlib.import_module('mujoco')\n",
+        ),
         ("isp_twin/diagnosis/report.py", "import rerun.blueprint as rrb\n"),
-        ("isp_twin/twin.py", "__import__('rerun')\n"),
+        ("isp_twin/model/twin.py", "__import__('rerun')\n"),
         ("isp_twin/commands/run.py", "import rerun as rr\n"),
-        ("isp_twin/results.py", "from rerun.chunk import RrdReader\n"),
+        ("isp_twin/experiments/results.py", "from rerun.chunk import RrdReader\n"),
         ("isp_twin/outputs/layout.py", "import rerun.blueprint as rrb\n"),  # not the package
-        ("isp_twin/control/pi.py", "from isp_twin.twin import Twin\n"),
-        ("isp_twin/control/pi.py", "from isp_twin import scenario\n"),
-        ("isp_twin/control/pi.py", "from .. import closed_loop\n"),
-        ("isp_twin/control/pi.py", "from ..closed_loop_kernel import advance\n"),
-        ("isp_twin/control/__init__.py", "from ..twin import Twin\n"),
-        ("isp_twin/friction.py", "import scipy.special\n"),
-        ("isp_twin/friction.py", "from isp_twin.twin import Twin\n"),
+        ("isp_twin/control/pi.py", "from isp_twin.model.twin import Twin\n"),
+        ("isp_twin/control/pi.py", "from isp_twin.experiments import scenario\n"),
+        ("isp_twin/control/pi.py", "from ..experiments import closed_loop\n"),
+        ("isp_twin/control/pi.py", "from ..experiments.closed_loop_kernel import advance\n"),
+        ("isp_twin/control/__init__.py", "from ..model.twin import Twin\n"),
+        ("isp_twin/model/axis_model.py", "from isp_twin.identification.fit import identify\n"),
+        ("isp_twin/model/parameters.py", "from ..experiments import scenario\n"),
+        ("isp_twin/experiments/metrics.py", "from isp_twin.diagnosis import search\n"),
+        ("isp_twin/identification/fit.py", "from isp_twin.output.layout import run_blueprint\n"),
+        ("isp_twin/output/layout.py", "from ..commands import run\n"),
+        ("isp_twin/reference/axis.py", "from isp_twin.model.friction import stribeck\n"),
+        ("isp_twin/model/friction.py", "import scipy.special\n"),
+        ("isp_twin/model/friction.py", "from isp_twin.model.twin import Twin\n"),
     ],
 )
 def test_a_planted_violation_is_caught(rel, source):
@@ -172,15 +212,21 @@ def test_a_planted_violation_is_caught(rel, source):
 @pytest.mark.parametrize(
     "rel, source",
     [
-        ("isp_twin/twin.py", "import mujoco\n"),
+        ("isp_twin/model/twin.py", "import mujoco\n"),
         ("isp_twin/output/recording.py", "import rerun as rr\n"),
         ("isp_twin/output/readback.py", "from rerun.chunk import RrdReader\n"),
         ("isp_twin/output/layout.py", "import rerun.blueprint as rrb\n"),
         ("isp_twin/control/pi.py", "from isp_twin.units import DEG\nfrom . import bound\n"),
         ("isp_twin/control/rate_loop.py", "from isp_twin.control.nfc import FrictionFeedForward\n"),
-        ("isp_twin/closed_loop.py", "from isp_twin.scenario import Scenario\n"),
-        ("isp_twin/friction.py", "from __future__ import annotations\nimport math\n"),
-        ("isp_twin/metrics.py", "import mujoco_menagerie_helpers\n"),  # a prefix is not a match
+        (
+            "isp_twin/experiments/closed_loop.py",
+            "from isp_twin.experiments.scenario import Scenario\n",
+        ),
+        ("isp_twin/model/friction.py", "from __future__ import annotations\nimport math\n"),
+        (
+            "isp_twin/experiments/metrics.py",
+            "import mujoco_menagerie_helpers\n",
+        ),  # a prefix is not a match
     ],
 )
 def test_allowed_imports_pass(rel, source):
@@ -235,14 +281,20 @@ def test_axis_joint_and_regime_names_are_listed_only_in_the_vocabulary():
     ],
 )
 def test_a_planted_list_of_names_is_caught(source):
-    assert restated_names("isp_twin/metrics.py", source)
+    assert restated_names("isp_twin/experiments/metrics.py", source)
 
 
 @pytest.mark.parametrize(
     "rel, source",
     [
-        ("isp_twin/metrics.py", 'def f(axis="inner_az"):\n    return axis == "inner_el"\n'),
-        ("isp_twin/metrics.py", 'PAIRS = (("inner_az", 1.0),)\n'),  # one name per literal
+        (
+            "isp_twin/experiments/metrics.py",
+            'def f(axis="inner_az"):\n    return axis == "inner_el"\n',
+        ),
+        (
+            "isp_twin/experiments/metrics.py",
+            'PAIRS = (("inner_az", 1.0),)\n',
+        ),  # one name per literal
         ("isp_twin/vocabulary.py", 'INNER_AXES = ("inner_az", "inner_el")\n'),
         ("isp_twin/reference/axis.py", 'REGIME_NAMES = ("R+", "R-", "L+", "L-")\n'),
     ],
@@ -253,10 +305,10 @@ def test_single_names_and_the_vocabulary_itself_pass(rel, source):
 
 def registry_lookups(rel: str, source: str) -> list[str]:
     """``EFFECTS[...]`` outside the registry's module ("file:line")."""
-    if rel == "isp_twin/effects/__init__.py":
+    if rel == "isp_twin/model/effects/__init__.py":
         return []
     return [
-        f"{rel}:{node.lineno}: EFFECTS[...] (use isp_twin.effects.effect_class)"
+        f"{rel}:{node.lineno}: EFFECTS[...] (use isp_twin.model.effects.effect_class)"
         for node in ast.walk(ast.parse(source, filename=rel))
         if isinstance(node, ast.Subscript)
         and isinstance(node.value, (ast.Name, ast.Attribute))
@@ -271,7 +323,7 @@ def test_effects_are_looked_up_by_one_function():
         found += registry_lookups(path.relative_to(root).as_posix(), path.read_text())
     assert not found, "\n".join(found)
     assert registry_lookups("isp_twin/diagnosis/search.py", "cls = effects.EFFECTS[name]\n")
-    assert registry_lookups("isp_twin/twin.py", "cls = EFFECTS[spec.name]\n")
+    assert registry_lookups("isp_twin/model/twin.py", "cls = EFFECTS[spec.name]\n")
 
 
 #: PyYAML's readers: only `isp_twin.input_files.load_yaml` calls them (one
@@ -302,9 +354,11 @@ def test_yaml_is_read_by_one_loader():
     for path in package_files():
         found += yaml_reads(path.relative_to(root).as_posix(), path.read_text())
     assert not found, "\n".join(found)
-    assert yaml_reads("isp_twin/sweep/design.py", "raw = yaml.safe_load(path.read_text())\n")
-    assert yaml_reads("isp_twin/rig.py", "import yaml\nraw = yaml.load(t, Loader=L)\n")
-    assert yaml_reads("isp_twin/parameters.py", "text = yaml.safe_dump(raw)\n") == []
+    assert yaml_reads(
+        "isp_twin/experiments/sweep/design.py", "raw = yaml.safe_load(path.read_text())\n"
+    )
+    assert yaml_reads("isp_twin/experiments/rig.py", "import yaml\nraw = yaml.load(t, Loader=L)\n")
+    assert yaml_reads("isp_twin/model/parameters.py", "text = yaml.safe_dump(raw)\n") == []
 
 
 # --------------------------------------------------------------------------
@@ -318,25 +372,25 @@ LONG_FUNCTIONS = {
     # Compiled kernels, kept whole: numba compiles each as one function, its
     # state in locals (a split would pass it through arrays), and each is
     # checked bit for bit against a plain Python form.
-    "isp_twin/closed_loop_kernel.py::_advance",
-    "isp_twin/substep_model.py::_advance_group",
-    "isp_twin/substep_model.py::simulate_substeps",
+    "isp_twin/experiments/closed_loop_kernel.py::_advance",
+    "isp_twin/model/substep_model.py::_advance_group",
+    "isp_twin/model/substep_model.py::simulate_substeps",
     # The fast model's batched loop over samples (Eq. 6): the hot path of
     # identification, one friction-law evaluation per sample (issue 11, item 1).
-    "isp_twin/axis_model.py::simulate",
+    "isp_twin/model/axis_model.py::simulate",
     # The reference simulator's integrator: one loop over samples, sub-steps
     # and events whose closures share its local state (docs/reference_simulator.md).
     "isp_twin/reference/axis.py::simulate",
     # Identification and diagnosis: being rewritten in stages (status enum,
     # per-iteration log) by their own issue; split there, not here.
-    "isp_twin/identification.py::identify",
-    "isp_twin/identification.py::equation_error_estimate",
+    "isp_twin/identification/fit.py::identify",
+    "isp_twin/identification/fit.py::equation_error_estimate",
     # New with issue 8's joint start (base and effect in one regression): its
     # grid, alternation and block solve become stages with the one estimation
     # engine (issue 8 item 5), not before.
-    "isp_twin/identification.py::joint_equation_error_estimate",
-    "isp_twin/identification_report.py::write_report",
-    "isp_twin/identification_report.py::result_json",
+    "isp_twin/identification/fit.py::joint_equation_error_estimate",
+    "isp_twin/identification/report.py::write_report",
+    "isp_twin/identification/report.py::result_json",
     "isp_twin/diagnosis/search.py::diagnose",
     "isp_twin/diagnosis/search.py::Diagnosis.to_json",
     "isp_twin/diagnosis/candidates.py::fit_candidates",

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isp_twin.axis_model import simulate, steady_rate
-from isp_twin.parameters import RATE_LAYOUT, RateParams
+from isp_twin.model.axis_model import simulate, steady_rate
+from isp_twin.model.parameters import RATE_LAYOUT, RateParams
 
 DT = 1e-3
 

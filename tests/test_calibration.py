@@ -11,18 +11,18 @@ import json
 
 import pytest
 
-import isp_twin.calibration as calibration
-from isp_twin.calibration import (
+import isp_twin.experiments.calibration as calibration
+from isp_twin.cli import main
+from isp_twin.experiments.calibration import (
     CellResult,
     Evaluation,
     calibration_markdown,
     cell_roles,
     fit_rig,
 )
-from isp_twin.cli import main
-from isp_twin.metrics import campaign_stats
-from isp_twin.paper import PAPER_CELLS
-from isp_twin.rig import load_rig, resolve_rig
+from isp_twin.experiments.metrics import campaign_stats
+from isp_twin.experiments.paper import PAPER_CELLS
+from isp_twin.experiments.rig import load_rig, resolve_rig
 
 RIG_FILE = resolve_rig("paper_rig")
 

@@ -5,9 +5,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from isp_twin.closed_loop import run_scenario, table_angles
 from isp_twin.errors import ScenarioError, SimulationDiverged
-from isp_twin.scenario import Motion, load_scenario, parse_scenario
+from isp_twin.experiments.closed_loop import run_scenario, table_angles
+from isp_twin.experiments.scenario import Motion, load_scenario, parse_scenario
 from isp_twin.units import DEG
 
 SHORT = {
@@ -210,8 +210,8 @@ def test_campaign_command_rejects_an_open_loop_scenario_and_an_axis_without_j(ca
 
 
 def test_the_run_records_exactly_the_signal_table_and_the_recorder_styles_each(short_run):
+    from isp_twin.experiments.signals import CLOSED_LOOP_SIGNALS, INNER_SIGNALS, OUTER_SIGNALS
     from isp_twin.output.entities import SIGNAL_STYLES
-    from isp_twin.signals import CLOSED_LOOP_SIGNALS, INNER_SIGNALS, OUTER_SIGNALS
 
     assert tuple(short_run.signals) == CLOSED_LOOP_SIGNALS.signals
     assert tuple(short_run.joint_angles) == CLOSED_LOOP_SIGNALS.joints
@@ -223,7 +223,7 @@ def test_the_run_records_exactly_the_signal_table_and_the_recorder_styles_each(s
 
 
 def test_stepping_a_closed_loop_by_hand_gives_the_same_run_and_reset_repeats_it():
-    from isp_twin.closed_loop import ClosedLoop
+    from isp_twin.experiments.closed_loop import ClosedLoop
 
     scenario = parse_scenario({**SHORT, "duration_s": 2.1}, "short.yaml")
     loop = ClosedLoop(scenario, seed=7)
@@ -244,7 +244,7 @@ def test_stepping_a_closed_loop_by_hand_gives_the_same_run_and_reset_repeats_it(
 
 
 def test_the_twins_fast_sense_reads_the_same_numbers_as_its_state():
-    from isp_twin.closed_loop import ClosedLoop
+    from isp_twin.experiments.closed_loop import ClosedLoop
 
     loop = ClosedLoop(parse_scenario({**SHORT, "duration_s": 2.1}, "short.yaml"))
     for _ in range(700):  # moving, with the turntable swinging

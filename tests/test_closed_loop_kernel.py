@@ -5,13 +5,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from isp_twin import closed_loop_kernel as kernel
-from isp_twin import friction
-from isp_twin.closed_loop import ClosedLoop
 from isp_twin.errors import SimulationDiverged
-from isp_twin.parameters import EffectSpec, load_parameters
+from isp_twin.experiments import closed_loop_kernel as kernel
+from isp_twin.experiments.closed_loop import ClosedLoop
+from isp_twin.experiments.scenario import parse_scenario
+from isp_twin.model import friction
+from isp_twin.model.parameters import EffectSpec, load_parameters
 from isp_twin.resources import default_parameters_path
-from isp_twin.scenario import parse_scenario
 
 BASE = {
     "duration_s": 1.5,

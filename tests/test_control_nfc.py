@@ -5,7 +5,7 @@ import math
 import pytest
 
 from isp_twin.control.nfc import FrictionFeedForward
-from isp_twin.parameters import REGIMES
+from isp_twin.model.parameters import REGIMES
 from isp_twin.units import DEG
 
 

@@ -12,10 +12,10 @@ from isp_twin.diagnosis.selection import judge
 from isp_twin.diagnosis.simulation import predict, stack_runs
 from isp_twin.diagnosis.synthetic import excitation, make_run
 from isp_twin.errors import DataError
-from isp_twin.measured import MeasuredData
-from isp_twin.parameters import EffectSpec, load_parameters
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.parameters import EffectSpec, load_parameters
+from isp_twin.model.substep_model import EQ6
 from isp_twin.resources import default_parameters_path
-from isp_twin.substep_model import EQ6
 from isp_twin.vocabulary import SIDE_R
 
 DT = 1e-3
@@ -95,7 +95,7 @@ def test_stack_runs_refuses_mixed_sample_periods():
 
 
 def test_predict_on_a_stack_equals_one_simulation_per_run(rate):
-    from isp_twin.axis_model import simulate
+    from isp_twin.model.axis_model import simulate
 
     rng = np.random.default_rng(1)
     runs = [
@@ -145,7 +145,7 @@ def test_analysis_sees_white_residual_for_the_true_model_and_structure_otherwise
 
 
 def test_a_fixed_side_picks_the_regimes_as_a_positive_angle_would(rate):
-    from isp_twin.axis_model import simulate
+    from isp_twin.model.axis_model import simulate
 
     rng = np.random.default_rng(6)
     u = excitation(rng, 800, DT)

@@ -8,12 +8,12 @@ import json
 import numpy as np
 import pytest
 
-from isp_twin.axis_model import simulate
 from isp_twin.cli import main
 from isp_twin.diagnosis.synthetic import excitation, make_run
-from isp_twin.effects import make_effect
-from isp_twin.measured import load_measured, save_measured
-from isp_twin.parameters import EffectSpec, load_parameters
+from isp_twin.identification.measured import load_measured, save_measured
+from isp_twin.model.axis_model import simulate
+from isp_twin.model.effects import make_effect
+from isp_twin.model.parameters import EffectSpec, load_parameters
 from isp_twin.resources import default_parameters_path
 
 DT = 1e-3
@@ -101,7 +101,7 @@ def test_the_fast_model_with_the_updated_file_reproduces_held_out_data(case):
 
 
 def test_the_twin_with_the_updated_file_reproduces_held_out_data(case):
-    from isp_twin.twin import GIMBALS, Twin
+    from isp_twin.model.twin import GIMBALS, Twin
 
     _, _, files, out, _ = case
     held = load_measured(files[2])
@@ -153,7 +153,7 @@ def test_bad_input_is_one_line_naming_what_and_where(tmp_path, capsys):
 
 
 def test_the_updated_file_records_the_model_and_a_second_diagnosis_uses_it(case, capsys):
-    from isp_twin.identification import recorded_model
+    from isp_twin.identification.fit import recorded_model
 
     _, folder, files, out, _ = case
     first = json.loads((folder / "result.json").read_text())
@@ -171,7 +171,7 @@ def test_the_updated_file_records_the_model_and_a_second_diagnosis_uses_it(case,
     # test_a_file_whose_axis_carries_an_effect_is_diagnosed_with_it_held).
     from dataclasses import replace
 
-    from isp_twin.parameters import save_parameters
+    from isp_twin.model.parameters import save_parameters
 
     params = load_parameters(out)
     plain = replace(params.axis(AXIS), effects=())

@@ -20,10 +20,10 @@ import pytest
 from isp_twin.diagnosis.search import LIBRARY
 from isp_twin.diagnosis.search import diagnose as _diagnose
 from isp_twin.diagnosis.synthetic import excitation, make_run, random_effect
-from isp_twin.identification import Timing
-from isp_twin.parameters import load_parameters
+from isp_twin.identification.fit import Timing
+from isp_twin.model.parameters import load_parameters
+from isp_twin.model.substep_model import EQ6
 from isp_twin.resources import default_parameters_path
-from isp_twin.substep_model import EQ6
 
 #: The runs are made by Eq. 6 itself (`axis_model`, gyro read at the sample):
 #: diagnosed with Eq. 6 (m = 1) and that read-out.

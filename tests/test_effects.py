@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isp_twin.axis_model import simulate
-from isp_twin.effects import EFFECTS, Effect, effect_class, make_effect
-from isp_twin.effects.batched import make_batched
 from isp_twin.errors import ParameterError
-from isp_twin.parameters import EffectSpec, load_parameters
+from isp_twin.model.axis_model import simulate
+from isp_twin.model.effects import EFFECTS, Effect, effect_class, make_effect
+from isp_twin.model.effects.batched import make_batched
+from isp_twin.model.parameters import EffectSpec, load_parameters
 from isp_twin.resources import default_parameters_path
 
 DT = 1e-3
@@ -279,7 +279,7 @@ def test_command_effects_match_a_pre_shaped_command(rate):
 def test_resonance_discretization_equals_the_matrix_exponential(freq, zeta, coupling):
     from scipy.linalg import expm
 
-    from isp_twin.effects.resonance import _discretize
+    from isp_twin.model.effects.resonance import _discretize
 
     wn = 2 * np.pi * freq
     aug = np.zeros((3, 3))
@@ -295,11 +295,11 @@ def test_every_effect_module_is_listed_in_the_registry():
     import inspect
     import pkgutil
 
-    import isp_twin.effects
+    import isp_twin.model.effects
 
     found = {}
-    for info in pkgutil.iter_modules(isp_twin.effects.__path__):
-        module = importlib.import_module(f"isp_twin.effects.{info.name}")
+    for info in pkgutil.iter_modules(isp_twin.model.effects.__path__):
+        module = importlib.import_module(f"isp_twin.model.effects.{info.name}")
         for _, cls in inspect.getmembers(module, inspect.isclass):
             if issubclass(cls, Effect) and cls is not Effect and cls.__module__ == module.__name__:
                 found[cls.name] = cls

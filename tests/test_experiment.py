@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isp_twin.axis_model import simulate
 from isp_twin.cli import main
 from isp_twin.errors import ParameterError
-from isp_twin.experiment import (
+from isp_twin.identification.experiments import (
     EQ7,
     INNER_STOP_DEG,
     PAPER_SET,
@@ -16,8 +15,9 @@ from isp_twin.experiment import (
     generate_set,
     paper_set,
 )
-from isp_twin.identification import regime_visits
-from isp_twin.measured import load_measured
+from isp_twin.identification.fit import regime_visits
+from isp_twin.identification.measured import load_measured
+from isp_twin.model.axis_model import simulate
 from isp_twin.units import DEG
 
 
@@ -128,8 +128,8 @@ def test_generate_command_writes_loadable_csv(tmp_path, capsys):
 def test_the_parameter_files_effects_are_in_the_generated_data(paper_params):
     from dataclasses import replace
 
-    from isp_twin.effects import make_effect
-    from isp_twin.parameters import EffectSpec
+    from isp_twin.model.effects import make_effect
+    from isp_twin.model.parameters import EffectSpec
 
     spring = EffectSpec("cable_spring", {"stiffness_1_s2": 300.0, "offset_rad_s2": 0.0})
     axis = replace(paper_params.axis("inner_az"), effects=(spring,))

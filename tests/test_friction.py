@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isp_twin.friction import (
+from isp_twin.model.friction import (
     SIDE_L,
     SIDE_R,
     friction_torque,
@@ -19,7 +19,7 @@ from isp_twin.friction import (
     stribeck,
     stribeck_magnitude,
 )
-from isp_twin.parameters import REGIMES
+from isp_twin.model.parameters import REGIMES
 
 TS = np.array([5.563, 7.117, 2.743, 4.254])  # Table 2, R+ R- L+ L-
 TC = np.array([3.176, 4.016, 1.950, 3.569])

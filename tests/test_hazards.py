@@ -174,7 +174,7 @@ def test_benchmark_without_its_data_exits_with_the_cli_code(tmp_path):
 
 
 def test_a_csv_with_a_byte_order_mark_loads(tmp_path):
-    from isp_twin.measured import load_measured
+    from isp_twin.identification.measured import load_measured
 
     plain = write_csv(tmp_path / "plain.csv", good_table())
     bom = tmp_path / "excel.csv"
@@ -184,7 +184,7 @@ def test_a_csv_with_a_byte_order_mark_loads(tmp_path):
 
 
 def test_a_scenario_with_a_byte_order_mark_loads(tmp_path):
-    from isp_twin.scenario import load_scenario
+    from isp_twin.experiments.scenario import load_scenario
 
     path = tmp_path / "bom.yaml"
     path.write_bytes(b"\xef\xbb\xbf" + OPEN_LOOP.encode())
@@ -199,7 +199,7 @@ def _drifting(path: Path, ppm: float) -> Path:
 
 def test_a_clock_drifting_30_ppm_passes_identify_and_diagnose_alike(tmp_path):
     from isp_twin.diagnosis.simulation import stack_runs
-    from isp_twin.measured import (
+    from isp_twin.identification.measured import (
         SAMPLE_PERIOD_TOLERANCE,
         check_sample_period,
         load_measured,
@@ -247,7 +247,7 @@ def test_training_and_validation_files_with_one_name_get_their_own_figures(tmp_p
 
 
 def test_scientific_notation_is_a_number_in_scenarios(tmp_path):
-    from isp_twin.scenario import load_scenario
+    from isp_twin.experiments.scenario import load_scenario
 
     path = tmp_path / "sci.yaml"
     text = OPEN_LOOP.replace("duration_s: 0.05", "duration_s: 5e-2")
@@ -259,7 +259,7 @@ def test_scientific_notation_is_a_number_in_scenarios(tmp_path):
 
 
 def test_scientific_notation_is_a_number_in_parameter_files(tmp_path):
-    from isp_twin.parameters import load_parameters
+    from isp_twin.model.parameters import load_parameters
 
     text = default_parameters_path().read_text()
     assert "sample_time_s: 0.001" in text
@@ -269,7 +269,7 @@ def test_scientific_notation_is_a_number_in_parameter_files(tmp_path):
 
 
 def test_scientific_notation_is_a_number_in_data_descriptions(tmp_path):
-    from isp_twin.measured import load_data_description
+    from isp_twin.identification.measured import load_data_description
 
     path = tmp_path / "d.yaml"
     path.write_text("columns: {t: t, u: u, omega: {column: omega, scale: 1e0}}\n")
@@ -315,10 +315,10 @@ def test_campaign_json_states_its_units(tmp_path, capsys):
 
 
 def test_report_json_states_its_units():
-    from isp_twin.calibration import CellResult, Evaluation, cell_roles, evaluation_json
-    from isp_twin.metrics import campaign_stats
-    from isp_twin.paper import PAPER_CELLS
-    from isp_twin.rig import load_rig, resolve_rig
+    from isp_twin.experiments.calibration import CellResult, Evaluation, cell_roles, evaluation_json
+    from isp_twin.experiments.metrics import campaign_stats
+    from isp_twin.experiments.paper import PAPER_CELLS
+    from isp_twin.experiments.rig import load_rig, resolve_rig
 
     roles = cell_roles(load_rig(resolve_rig("paper_rig")))
     stats = campaign_stats([10.0, 12.0])
@@ -403,7 +403,7 @@ def test_the_documented_real_data_example_runs_from_the_shipped_files(tmp_path, 
     out = capsys.readouterr().out
     assert code == 0
     assert "identified inner_az regimes R+" in out
-    from isp_twin.parameters import load_parameters
+    from isp_twin.model.parameters import load_parameters
 
     axis = load_parameters(tmp_path / "hsm150.yaml").axis("inner_az")
     assert axis.identified == (True, False, False, False)

@@ -786,7 +786,7 @@ def test_unprivileged_really_drops_the_write_permission(world):
 
 def test_data_files_in_the_table_are_otherwise_valid(world):
     """Each bad data file differs from a loadable one only by its defect."""
-    from isp_twin.measured import load_measured
+    from isp_twin.identification.measured import load_measured
 
     good = world / "ok_like.csv"
     good.write_text(DATA_FILES["nan-row"].replace("nan", "1"))

@@ -13,8 +13,8 @@ import pytest
 
 from isp_twin.cli import main
 from isp_twin.errors import DataError
-from isp_twin.experiment import PAPER_SET, generate_set
-from isp_twin.identification import (
+from isp_twin.identification.experiments import PAPER_SET, generate_set
+from isp_twin.identification.fit import (
     Settings,
     equation_error_estimate,
     fused_angle,
@@ -22,8 +22,8 @@ from isp_twin.identification import (
     rmse,
     to_axis_params,
 )
-from isp_twin.measured import save_measured
-from isp_twin.parameters import (
+from isp_twin.identification.measured import save_measured
+from isp_twin.model.parameters import (
     RATE_LAYOUT,
     AxisParams,
     ParameterSet,
@@ -31,7 +31,7 @@ from isp_twin.parameters import (
     load_parameters,
     save_parameters,
 )
-from isp_twin.substep_model import EQ6
+from isp_twin.model.substep_model import EQ6
 from isp_twin.units import DEG
 
 # Short test data: two of the paper-set variations at 1 Hz, 1000 samples
@@ -258,7 +258,7 @@ def test_real_free_spinning_motor_with_the_side_fixed(tmp_path):
     With the side fixed to R only R+ is visited; the other three regimes keep
     the prior and are flagged, and the fit beats the prior.
     """
-    from isp_twin.measured import load_measured, mapping_from_options
+    from isp_twin.identification.measured import load_measured, mapping_from_options
 
     real = Path(__file__).parent / "data" / "hsm150_idf_pos_0.06_1_excerpt.mat"
     d = load_measured(
@@ -313,8 +313,8 @@ def test_identify_command_reads_mat_through_a_data_description(tmp_path):
 
 def _with_effect(data, truth, spec):
     """The runs re-simulated (noise-free) with Eq. 6 plus one extra effect."""
-    from isp_twin.axis_model import simulate
-    from isp_twin.effects import make_effect
+    from isp_twin.model.axis_model import simulate
+    from isp_twin.model.effects import make_effect
 
     out = []
     for d in data:
@@ -332,7 +332,7 @@ def _with_effect(data, truth, spec):
 def test_identification_keeps_the_prior_effects_in_the_fit_and_the_file(
     paper_params, truth, tmp_path
 ):
-    from isp_twin.parameters import EffectSpec
+    from isp_twin.model.parameters import EffectSpec
 
     # A centring cable spring: 300 rad/s^2 per rad is a pull of 15.7 rad/s^2
     # at 3 deg, of the order of the friction levels (b*Ts/T ~ 10-40 rad/s^2).
@@ -347,7 +347,7 @@ def test_identification_keeps_the_prior_effects_in_the_fit_and_the_file(
     save_parameters(paper_params.with_axis("inner_az", to_axis_params(result, declared)), out)
     assert load_parameters(out).axis("inner_az").effects == (spring,)
     # The report's numbers come from the model with the spring as well.
-    from isp_twin.identification_report import result_json
+    from isp_twin.identification.report import result_json
 
     summary = result_json(result, "inner_az", to_axis_params(result, declared), data[:1])
     assert summary["effects_held"] == [{"name": "cable_spring", "parameters": spring.params}]

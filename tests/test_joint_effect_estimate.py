@@ -18,13 +18,13 @@ import math
 import numpy as np
 import pytest
 
-from isp_twin.identification import (
+from isp_twin.identification.fit import (
     equation_error_estimate,
     joint_equation_error_estimate,
     rmse,
 )
-from isp_twin.measured import MeasuredData
-from isp_twin.parameters import EffectSpec
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.parameters import EffectSpec
 from isp_twin.reference import design_experiment
 from isp_twin.units import DEG
 
@@ -66,7 +66,7 @@ def case(request):
 
 
 def _unit_prior():
-    from isp_twin.parameters import RateParams
+    from isp_twin.model.parameters import RateParams
 
     return RateParams.from_vector(np.tile([0.9, 1e-4, 1e-3, 1e-3, 10.0], 4))
 

@@ -10,7 +10,7 @@ import pytest
 from scipy.io import savemat
 
 from isp_twin.errors import DataError, ResourceNotFound
-from isp_twin.measured import (
+from isp_twin.identification.measured import (
     MIN_SAMPLES,
     DataMapping,
     MeasuredData,

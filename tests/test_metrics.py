@@ -5,7 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from isp_twin.metrics import axis_metrics, campaign_stats, isolation_percent, run_metrics
+from isp_twin.experiments.metrics import (
+    axis_metrics,
+    campaign_stats,
+    isolation_percent,
+    run_metrics,
+)
 from isp_twin.units import DEG
 
 

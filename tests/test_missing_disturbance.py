@@ -18,11 +18,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from isp_twin.closed_loop import ClosedLoop
-from isp_twin.parameters import EffectSpec
+from isp_twin.experiments.closed_loop import ClosedLoop
+from isp_twin.experiments.scenario import load_scenario
+from isp_twin.model.parameters import EffectSpec
+from isp_twin.model.twin import Twin
 from isp_twin.resources import model_path
-from isp_twin.scenario import load_scenario
-from isp_twin.twin import Twin
 from isp_twin.units import DEG
 
 

@@ -8,9 +8,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from isp_twin.parameters import load_parameters
+from isp_twin.model.parameters import load_parameters
+from isp_twin.model.twin import GIMBALS, TABLE_JOINTS, Twin
 from isp_twin.resources import default_parameters_path, model_path
-from isp_twin.twin import GIMBALS, TABLE_JOINTS, Twin
 from isp_twin.units import DEG
 
 

@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 import isp_twin
-from isp_twin.closed_loop import ClosedLoop
-from isp_twin.parameters import load_parameters
+from isp_twin.experiments.closed_loop import ClosedLoop
+from isp_twin.experiments.scenario import load_scenario
+from isp_twin.model.parameters import load_parameters
 from isp_twin.resources import default_parameters_path, resource_root
-from isp_twin.scenario import load_scenario
 
 PARAMS = resource_root() / "models" / "params"
 SHIPPED = PARAMS / "twin_identified.yaml"

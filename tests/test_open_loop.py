@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isp_twin.axis_model import steady_rate
-from isp_twin.open_loop import PAPER_FIG2, analyse_open_loop, simulate_open_loop
+from isp_twin.experiments.open_loop import PAPER_FIG2, analyse_open_loop, simulate_open_loop
+from isp_twin.model.axis_model import steady_rate
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +72,7 @@ def test_both_engines_apply_the_effects_of_the_parameter_file(paper_params):
     # off its stops and changes the response by ~18 % RMS of the peak rate.
     from dataclasses import replace
 
-    from isp_twin.parameters import EffectSpec
+    from isp_twin.model.parameters import EffectSpec
 
     axis = paper_params.axis("inner_az")
     spring = EffectSpec("cable_spring", {"stiffness_1_s2": 1500.0, "offset_rad_s2": 0.0})

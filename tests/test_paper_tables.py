@@ -5,7 +5,7 @@ paper's measured J (one seed: the PI runs scatter by < 0.5 points); PI ->
 PI+NFC relative reduction within +-10 points of the paper's (36.9 % tracking,
 41.8 % isolation) over ten seeds, up to three standard errors; J falls as the
 amplitude grows. Each pinned cell's test name says what it is worth as
-evidence (fit, fit_by_hand or validation: the roles of isp_twin.calibration,
+evidence (fit, fit_by_hand or validation: the roles of isp_twin.experiments.calibration,
 from the rig file).
 """
 
@@ -14,13 +14,13 @@ import math
 import numpy as np
 import pytest
 
-from isp_twin.calibration import cell_roles
-from isp_twin.campaign import TABLE4_SCENARIOS, run_campaign
-from isp_twin.closed_loop import run_scenario
-from isp_twin.metrics import campaign_stats
-from isp_twin.paper import PAPER_CELLS, TABLE5, TABLE6, relative_reduction
-from isp_twin.rig import load_rig, resolve_rig
-from isp_twin.scenario import load_scenario
+from isp_twin.experiments.calibration import cell_roles
+from isp_twin.experiments.campaign import TABLE4_SCENARIOS, run_campaign
+from isp_twin.experiments.closed_loop import run_scenario
+from isp_twin.experiments.metrics import campaign_stats
+from isp_twin.experiments.paper import PAPER_CELLS, TABLE5, TABLE6, relative_reduction
+from isp_twin.experiments.rig import load_rig, resolve_rig
+from isp_twin.experiments.scenario import load_scenario
 
 
 @pytest.mark.parametrize("table", [TABLE5, TABLE6], ids=["table5", "table6"])
@@ -49,7 +49,7 @@ def twin_j(name: str, seed: int = 1) -> float:
 
 
 def _label(role: str) -> str:
-    """The evidence label in a pinned cell's test name (roles: isp_twin.calibration)."""
+    """The evidence label in a pinned cell's test name (roles: isp_twin.experiments.calibration)."""
     return {"fitted": "fit", "shaped": "fit_by_hand", "validation": "validation"}[role]
 
 

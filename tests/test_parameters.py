@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from isp_twin.errors import ParameterError, ResourceNotFound
-from isp_twin.parameters import RATE_LAYOUT, REGIMES, load_parameters, save_parameters
+from isp_twin.model.parameters import RATE_LAYOUT, REGIMES, load_parameters, save_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG
 
@@ -85,7 +85,7 @@ def test_missing_file(tmp_path):
 def test_the_fitted_with_block_round_trips_and_its_absence_means_none(paper_params, tmp_path):
     from dataclasses import replace
 
-    from isp_twin.parameters import FittedWith
+    from isp_twin.model.parameters import FittedWith
 
     assert all(a.fitted_with is None for a in paper_params.axes.values())
     record = FittedWith(7, True, False, True, True, 0.25)
@@ -101,15 +101,15 @@ def test_the_fitted_with_block_round_trips_and_its_absence_means_none(paper_para
 def test_identify_records_the_model_and_timing_it_fitted_with():
     import numpy as np
 
-    from isp_twin.identification import (
+    from isp_twin.identification.fit import (
         IdentificationResult,
         Timing,
         recorded_model,
         to_axis_params,
     )
-    from isp_twin.parameters import RateParams
+    from isp_twin.model.parameters import RateParams
+    from isp_twin.model.substep_model import Integration
     from isp_twin.resources import default_parameters_path
-    from isp_twin.substep_model import Integration
 
     prior = load_parameters(default_parameters_path()).axis("inner_az")
     rate = prior.rate_params()

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from isp_twin.errors import DataError, ResourceNotFound
+from isp_twin.experiments.results import RunResult
 from isp_twin.output import readback, recording, rerun_writer
 from isp_twin.output.kinematics import JOINTS, joint_quaternions, line_of_sight
 from isp_twin.output.readback import read_series, read_text, read_views, verify_recording
 from isp_twin.output.recording import record_residuals, record_run
-from isp_twin.results import RunResult
 from isp_twin.units import DEG
 
 DT = 1e-3  # 1 kHz, the runner's rate

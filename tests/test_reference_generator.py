@@ -14,9 +14,9 @@ import yaml
 
 import isp_twin.reference as reference
 from isp_twin.cli import main
-from isp_twin.effects import EFFECTS
-from isp_twin.measured import load_measured
-from isp_twin.parameters import REGIMES, RateParams
+from isp_twin.identification.measured import load_measured
+from isp_twin.model.effects import EFFECTS
+from isp_twin.model.parameters import REGIMES, RateParams
 from isp_twin.reference import EFFECT_NAMES, RUN_NAMES, design_experiment, draw_axis
 from isp_twin.reference.experiment import MAX_ANGLE_DEG, MIN_FOOTPRINT_SIGMA, MIN_MOVING
 
@@ -135,7 +135,7 @@ def test_the_truth_rate_form_drives_the_project_model_onto_the_reference(seed):
     """The mapping is exact while sliding with a point-sampled gyro: the project's Eq. 6
     model with the truth's rate form must follow the reference (the angle given, as
     identification does); a mapping error in units, sign or regime order would not."""
-    from isp_twin.axis_model import simulate as eq6
+    from isp_twin.model.axis_model import simulate as eq6
     from isp_twin.reference import Excitation, Sensors, rate_form, simulate
 
     drawn = draw_axis(seed)

@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 
 from isp_twin.errors import RigError
-from isp_twin.paper import PAPER_CELLS
+from isp_twin.experiments.paper import PAPER_CELLS
+from isp_twin.experiments.rig import load_rig, parse_rig, resolve_rig
+from isp_twin.experiments.scenario import Scenario, load_scenario, parse_scenario
 from isp_twin.resources import resource_root
-from isp_twin.rig import load_rig, parse_rig, resolve_rig
-from isp_twin.scenario import Scenario, load_scenario, parse_scenario
 
 RIG_FILE = resource_root() / "models" / "rigs" / "paper_rig.yaml"
 
@@ -119,7 +119,7 @@ def test_the_shipped_scenarios_run_on_the_rig_values_they_do_not_override():
 
 
 def test_a_scenario_round_trips_with_its_rig_values_explicit():
-    from isp_twin.scenario import scenario_to_raw
+    from isp_twin.experiments.scenario import scenario_to_raw
 
     s = load_scenario("tracking_0_5Hz")
     again = parse_scenario(scenario_to_raw(s), s.source)

@@ -6,14 +6,14 @@ from pathlib import Path
 import pytest
 
 from isp_twin.errors import ResourceNotFound, ScenarioError
-from isp_twin.resources import resource_root
-from isp_twin.scenario import (
+from isp_twin.experiments.scenario import (
     Scenario,
     load_scenario,
     parse_scenario,
     scenario_json_schema,
     scenario_json_schema_text,
 )
+from isp_twin.resources import resource_root
 from isp_twin.units import DEG
 
 SCENARIOS = resource_root() / "scenarios"

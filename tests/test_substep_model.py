@@ -1,4 +1,4 @@
-"""The sub-stepped Eq. 6 (`isp_twin.substep_model`): Eq. 6 at m = 1, exact
+"""The sub-stepped Eq. 6 (`isp_twin.model.substep_model`): Eq. 6 at m = 1, exact
 zero-order hold at any m, convergence in m, and the true parameters of
 reference-simulator axes at the noise."""
 
@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isp_twin.axis_model import simulate
-from isp_twin.effects import make_effect
-from isp_twin.identification import gyro_reading
-from isp_twin.parameters import EffectSpec, RateParams
-from isp_twin.substep_model import EQ6, Integration, simulate_substeps
+from isp_twin.identification.fit import gyro_reading
+from isp_twin.model.axis_model import simulate
+from isp_twin.model.effects import make_effect
+from isp_twin.model.parameters import EffectSpec, RateParams
+from isp_twin.model.substep_model import EQ6, Integration, simulate_substeps
 from isp_twin.vocabulary import SIDE_L, SIDE_R
 
 DT = 1e-3
@@ -105,8 +105,8 @@ def test_true_parameters_of_a_reference_axis_reach_the_noise_only_sub_stepped():
     truth of a reference axis written in the Eq. 6 form is at the noise with
     m = 10, and well above it with Eq. 6 (m = 1). Seed 2003 (time constant
     0.53 s, sharp Stribeck curves) shaped no choice."""
-    from isp_twin.identification import Timing, rmse
-    from isp_twin.measured import MeasuredData
+    from isp_twin.identification.fit import Timing, rmse
+    from isp_twin.identification.measured import MeasuredData
     from isp_twin.reference import design_experiment
 
     exp = design_experiment(2003)
@@ -130,7 +130,7 @@ def test_true_parameters_of_a_reference_axis_reach_the_noise_only_sub_stepped():
 @pytest.mark.parametrize("command", ["identify", "diagnose"])
 def test_a_bad_substep_count_is_one_clear_error(tmp_path, capsys, command):
     from isp_twin.cli import main
-    from isp_twin.measured import MeasuredData, save_measured
+    from isp_twin.identification.measured import MeasuredData, save_measured
     from isp_twin.resources import default_parameters_path
 
     t = np.arange(200) * DT
@@ -146,8 +146,8 @@ def test_a_bad_substep_count_is_one_clear_error(tmp_path, capsys, command):
 
 
 def test_the_kernel_calls_friction_py_compiled_bit_for_bit():
-    from isp_twin import substep_model
-    from isp_twin.friction_compiled import law_probe_cases, python_law
+    from isp_twin.model import substep_model
+    from isp_twin.model.friction_compiled import law_probe_cases, python_law
 
     cases = law_probe_cases()
     compiled = substep_model._law_probe(cases)
@@ -157,7 +157,7 @@ def test_the_kernel_calls_friction_py_compiled_bit_for_bit():
 
 
 def test_an_edit_to_friction_py_makes_the_cached_substep_kernel_stale(monkeypatch):
-    from isp_twin import friction, substep_model
+    from isp_twin.model import friction, substep_model
 
     law = friction.stribeck
     monkeypatch.setattr(friction, "stribeck", lambda *args: law(*args) * (1 + 1e-12))
@@ -167,7 +167,7 @@ def test_an_edit_to_friction_py_makes_the_cached_substep_kernel_stale(monkeypatc
 def _kernel_case(m: int, side: str, n_sets: int = 7, seed: int = 11):
     """Inputs of the sub-step kernel: random sets, some rows starting at rest,
     a non-zero extra drive (as effects give), reversals and sticks."""
-    from isp_twin.substep_model import _substep_table
+    from isp_twin.model.substep_model import _substep_table
 
     rng = np.random.default_rng(seed)
     params = _params(n_sets, seed=seed)
@@ -207,7 +207,7 @@ def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(m, mid, split, side)
     # which independent rows are computed: every number must be the same.
     from substep_kernel_reference import advance_row_by_row
 
-    from isp_twin.substep_model import _advance_blocks, _advance_rows
+    from isp_twin.model.substep_model import _advance_blocks, _advance_rows
 
     case = _kernel_case(m, side)
     n_rows = case[1].shape[0]
@@ -228,7 +228,7 @@ def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(m, mid, split, side)
 
 @pytest.mark.parametrize("parallel", [True, False])
 def test_simulate_substeps_is_the_same_on_one_thread_or_all(monkeypatch, parallel):
-    from isp_twin import substep_model
+    from isp_twin.model import substep_model
 
     params = _params(9, seed=13)
     u, angle = _command(4)
@@ -241,7 +241,7 @@ def test_simulate_substeps_is_the_same_on_one_thread_or_all(monkeypatch, paralle
 
 def _effect_specs(rng: np.random.Generator, n_sets: int) -> dict[str, dict[str, np.ndarray]]:
     """Batched parameters (P,) of every library effect, drawn inside its bounds."""
-    from isp_twin.effects import EFFECTS
+    from isp_twin.model.effects import EFFECTS
 
     specs = {}
     for name, cls in EFFECTS.items():
@@ -255,7 +255,7 @@ def _effect_specs(rng: np.random.Generator, n_sets: int) -> dict[str, dict[str, 
 
 def _per_sample_loop(params, u, angle, effects, integration, omega0):
     """The effects path as it was: every hook and one kernel call per sample."""
-    from isp_twin.substep_model import _advance_rows, _substep_table
+    from isp_twin.model.substep_model import _advance_rows, _substep_table
 
     n_rows, n = u.shape
     m = integration.substeps
@@ -288,7 +288,7 @@ def _per_sample_loop(params, u, angle, effects, integration, omega0):
 def test_effects_evaluated_before_the_run_give_the_per_sample_numbers(names):
     # Command hooks and angle-only accelerations are evaluated over the whole
     # run before one kernel call; the numbers are those of the per-sample loop.
-    from isp_twin.effects.batched import make_batched
+    from isp_twin.model.effects.batched import make_batched
 
     rng = np.random.default_rng(17)
     n_sets = 5
@@ -315,8 +315,8 @@ def test_effects_evaluated_before_the_run_give_the_per_sample_numbers(names):
 
 @pytest.mark.parametrize("name", ["cogging", "cable_spring", "unbalance", "torque_offset"])
 def test_an_acceleration_declared_rate_free_ignores_the_rate_and_keeps_no_state(name):
-    from isp_twin.effects import EFFECTS
-    from isp_twin.effects.batched import make_batched
+    from isp_twin.model.effects import EFFECTS
+    from isp_twin.model.effects.batched import make_batched
 
     assert not EFFECTS[name].acceleration_uses_rate
     rng = np.random.default_rng(23)
@@ -329,6 +329,6 @@ def test_an_acceleration_declared_rate_free_ignores_the_rate_and_keeps_no_state(
 
 
 def test_lugre_declares_that_its_acceleration_uses_the_rate():
-    from isp_twin.effects import EFFECTS
+    from isp_twin.model.effects import EFFECTS
 
     assert EFFECTS["lugre"].acceleration_uses_rate

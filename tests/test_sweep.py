@@ -14,10 +14,10 @@ import yaml
 
 from isp_twin.cli import main
 from isp_twin.errors import DataError
-from isp_twin.sweep.design import draw_parameters, load_sweep, parse_sweep
-from isp_twin.sweep.execute import execute, run_one, worker_count
-from isp_twin.sweep.store import ResultStore
-from isp_twin.sweep.summary import summarize
+from isp_twin.experiments.sweep.design import draw_parameters, load_sweep, parse_sweep
+from isp_twin.experiments.sweep.execute import execute, run_one, worker_count
+from isp_twin.experiments.sweep.store import ResultStore
+from isp_twin.experiments.sweep.summary import summarize
 
 # A short closed loop (yaw 0.5 Hz, metrics over the last 0.4 s): ~50 ms a run.
 SHORT = {
@@ -430,7 +430,7 @@ def test_the_sweep_command_prints_the_best_setting_writes_plots_and_json(files, 
 
 
 def test_campaign_with_absurd_jobs_starts_no_more_workers_than_runs_and_cores(monkeypatch, capsys):
-    import isp_twin.sweep.execute as ex
+    import isp_twin.experiments.sweep.execute as ex
 
     started = []
     real = ex.local_client

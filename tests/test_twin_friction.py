@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isp_twin.friction import sliding_friction, stribeck_magnitude
-from isp_twin.parameters import REGIMES, load_parameters
+from isp_twin.model.friction import sliding_friction, stribeck_magnitude
+from isp_twin.model.parameters import REGIMES, load_parameters
+from isp_twin.model.twin import REST_RATE, Twin
 from isp_twin.resources import default_parameters_path
-from isp_twin.twin import REST_RATE, Twin
 from isp_twin.units import DEG
 
 AZ = 0  # inner_az in the twin's GIMBALS order

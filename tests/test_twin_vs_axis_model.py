@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from isp_twin.axis_model import simulate
 from isp_twin.errors import ParameterError, ResourceNotFound, ScenarioError, SimulationDiverged
-from isp_twin.parameters import EffectSpec, RateParams, load_parameters
+from isp_twin.model.axis_model import simulate
+from isp_twin.model.parameters import EffectSpec, RateParams, load_parameters
+from isp_twin.model.twin import PhysicalAxis, Twin
 from isp_twin.resources import default_parameters_path
-from isp_twin.twin import PhysicalAxis, Twin
 from isp_twin.units import DEG
 
 AZ, EL = 0, 1
@@ -68,7 +68,7 @@ def test_off_the_stops_every_twin_step_is_an_eq_6_step(params, twin, run):
     The Euler map makes the twin's explicit-Euler step Eq. 6 itself; what is
     left is the constraint solver's tolerance on stick and slip.
     """
-    from isp_twin.experiment import PAPER_SET
+    from isp_twin.identification.experiments import PAPER_SET
 
     e = PAPER_SET[run]
     t = np.arange(e.n_samples) * e.dt

@@ -8,10 +8,10 @@ import pytest
 import yaml
 
 from isp_twin.cli import main
-from isp_twin.rig import load_rig
-from isp_twin.scenario import load_scenario
-from isp_twin.sweep.design import scenario_of
-from isp_twin.uncertainty import (
+from isp_twin.experiments.rig import load_rig
+from isp_twin.experiments.scenario import load_scenario
+from isp_twin.experiments.sweep.design import scenario_of
+from isp_twin.experiments.uncertainty import (
     Band,
     OatRow,
     UncertaintyResult,

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
+from isp_twin.identification.verdict import CONVERGED_RATIO, fit_verdict, noise_floor_of
 from isp_twin.units import DEG
-from isp_twin.verdict import CONVERGED_RATIO, fit_verdict, noise_floor_of
 
 
 @pytest.mark.parametrize("sigma", [0.01 * DEG, 0.1 * DEG])

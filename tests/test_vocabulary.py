@@ -8,13 +8,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from isp_twin.axis_model import simulate
 from isp_twin.errors import ParameterError
+from isp_twin.experiments.scenario import OpenLoop
+from isp_twin.model.axis_model import simulate
+from isp_twin.model.parameters import load_parameters
+from isp_twin.model.substep_model import simulate_substeps
 from isp_twin.output.kinematics import JOINTS
-from isp_twin.parameters import load_parameters
 from isp_twin.resources import default_parameters_path, model_path
-from isp_twin.scenario import OpenLoop
-from isp_twin.substep_model import simulate_substeps
 from isp_twin.vocabulary import (
     GIMBAL_AXES,
     INNER_AXES,

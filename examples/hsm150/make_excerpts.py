@@ -24,7 +24,7 @@ sys.path.insert(0, str(HERE.parents[1] / "benchmarks"))
 
 from identify_hsm150 import prior  # noqa: E402
 
-from isp_twin.parameters import save_parameters  # noqa: E402
+from isp_twin.model.parameters import save_parameters  # noqa: E402
 
 RUNS = ("idf_pos_0.06_1", "idf_pos_0.065_1")
 ROWS = slice(9000, 11000)

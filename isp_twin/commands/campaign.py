@@ -85,9 +85,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def execute(args: argparse.Namespace) -> int:
-    from isp_twin.campaign import run_campaign
-    from isp_twin.parameters import load_parameters
-    from isp_twin.scenario import load_scenario
+    from isp_twin.experiments.campaign import run_campaign
+    from isp_twin.experiments.scenario import load_scenario
+    from isp_twin.model.parameters import load_parameters
 
     if args.runs < 1:
         raise ScenarioError(f"--runs must be >= 1, got {args.runs}")
@@ -132,7 +132,11 @@ def execute(args: argparse.Namespace) -> int:
 
 
 def _uncertainty(args: argparse.Namespace, scenario) -> int:
-    from isp_twin.uncertainty import format_uncertainty, plot_uncertainty, run_uncertainty
+    from isp_twin.experiments.uncertainty import (
+        format_uncertainty,
+        plot_uncertainty,
+        run_uncertainty,
+    )
 
     if args.uncertainty < 2:
         raise ScenarioError(f"--uncertainty must be >= 2 draws, got {args.uncertainty}")
@@ -146,7 +150,7 @@ def _uncertainty(args: argparse.Namespace, scenario) -> int:
     inputs = [scenario.source, *([args.params] if args.params is not None else [])]
     check_outputs({"--json": args.json, "--plot": plot}, inputs)
     if args.params is not None:
-        from isp_twin.parameters import load_parameters
+        from isp_twin.model.parameters import load_parameters
 
         load_parameters(args.params)  # a bad file stops before any output
     n_runs = 2 * args.uncertainty

@@ -10,10 +10,14 @@ from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.errors import DataError, ParameterError
-from isp_twin.identification import Timing, recorded_model
-from isp_twin.measured import DataMapping, load_data_description, mapping_from_options
-from isp_twin.parameters import MAX_SUBSTEPS, AxisParams
-from isp_twin.substep_model import DEFAULT_INTEGRATION, EQ6, Integration
+from isp_twin.identification.fit import Timing, recorded_model
+from isp_twin.identification.measured import (
+    DataMapping,
+    load_data_description,
+    mapping_from_options,
+)
+from isp_twin.model.parameters import MAX_SUBSTEPS, AxisParams
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION, EQ6, Integration
 
 __all__ = [
     "MAX_SAMPLES",

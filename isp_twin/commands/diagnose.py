@@ -18,10 +18,10 @@ from isp_twin.commands.data_options import (
 from isp_twin.commands.progress import working
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, FIXED_SIDE
 from isp_twin.errors import ParameterError
-from isp_twin.identification import fitted_with
-from isp_twin.measured import check_sample_period, load_measured, unique_names
+from isp_twin.identification.fit import fitted_with
+from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
+from isp_twin.model.parameters import AxisParams, ParameterSet, load_parameters, save_parameters
 from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
-from isp_twin.parameters import AxisParams, ParameterSet, load_parameters, save_parameters
 from isp_twin.units import DEG
 from isp_twin.vocabulary import GIMBAL_AXES
 

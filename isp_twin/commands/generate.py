@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from isp_twin.commands.generate_reference import add_reference_options, execute_reference
-from isp_twin.experiment import (
+from isp_twin.identification.experiments import (
     EQ7,
     GYRO_NOISE_DEG_S,
     RESOLVER_LSB_DEG,
@@ -13,9 +13,9 @@ from isp_twin.experiment import (
     generate_openloop,
     paper_set,
 )
-from isp_twin.measured import save_measured
+from isp_twin.identification.measured import save_measured
+from isp_twin.model.parameters import load_parameters
 from isp_twin.output.files import check_folder, check_outputs, transaction
-from isp_twin.parameters import load_parameters
 from isp_twin.resources import default_parameters_path
 from isp_twin.vocabulary import GIMBAL_AXES
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 
 from isp_twin.errors import ParameterError, nearest
-from isp_twin.measured import MeasuredData, save_measured
+from isp_twin.identification.measured import MeasuredData, save_measured
 from isp_twin.output.files import write_text_atomic
 
 __all__ = ["add_reference_options", "execute_reference"]

@@ -55,8 +55,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run_evaluation(args: argparse.Namespace, fit: bool, what: str) -> int:
     """Shared body of `report` and `calibrate`."""
-    from isp_twin.calibration import calibration_markdown, evaluate_cells, evaluation_json
-    from isp_twin.rig import load_rig, resolve_rig
+    from isp_twin.experiments.calibration import (
+        calibration_markdown,
+        evaluate_cells,
+        evaluation_json,
+    )
+    from isp_twin.experiments.rig import load_rig, resolve_rig
 
     if args.runs < 1:
         raise ScenarioError(f"--runs must be >= 1, got {args.runs}")

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 
 from isp_twin.errors import ScenarioError
+from isp_twin.experiments.results import RunResult
+from isp_twin.model.parameters import load_parameters
 from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
-from isp_twin.parameters import load_parameters
 from isp_twin.resources import find_scenario
-from isp_twin.results import RunResult
 from isp_twin.units import DEG
 from isp_twin.vocabulary import SIDE_L, SIDE_R
 
@@ -85,7 +85,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def execute(args: argparse.Namespace) -> int:
-    from isp_twin.scenario import load_scenario
+    from isp_twin.experiments.scenario import load_scenario
 
     if args.no_recording and (args.spawn or args.connect is not None):
         flag = "--spawn" if args.spawn else "--connect"
@@ -134,11 +134,11 @@ def _load_simulator(scenario, engine: str) -> None:
     """Import the simulator (MuJoCo, numba) before the header: once the header is
     printed the run starts at once (and Ctrl-C from then on keeps what ran)."""
     if scenario.kind == "closed_loop":
-        import isp_twin.closed_loop
+        import isp_twin.experiments.closed_loop
 
-        isp_twin.closed_loop.load_kernel()  # numba and the compiled loop, if available
+        isp_twin.experiments.closed_loop.load_kernel()  # numba and the compiled loop, if available
     elif engine == "twin":
-        import isp_twin.twin  # noqa: F401
+        import isp_twin.model.twin  # noqa: F401
 
 
 def _write_outputs(args: argparse.Namespace, result, payload: dict, recording) -> None:
@@ -157,7 +157,7 @@ def _write_outputs(args: argparse.Namespace, result, payload: dict, recording) -
 
 
 def _run_closed_loop(scenario, params, params_path, name, seed):
-    from isp_twin.closed_loop import run_scenario
+    from isp_twin.experiments.closed_loop import run_scenario
 
     result = run_scenario(scenario, params=params, seed=seed, on_progress=_progress())
     metrics = dict(result.metrics)
@@ -183,7 +183,7 @@ def _run_closed_loop(scenario, params, params_path, name, seed):
 
 
 def _run_open_loop(scenario, params, params_path, name, seed, engine):
-    from isp_twin.open_loop import analyse_open_loop, simulate_open_loop
+    from isp_twin.experiments.open_loop import analyse_open_loop, simulate_open_loop
 
     ol = scenario.open_loop
     response = simulate_open_loop(
@@ -228,7 +228,7 @@ def _run_open_loop(scenario, params, params_path, name, seed, engine):
 
 def _print_open_loop(figures, axis: str, engine: str, skip: float) -> None:
     """The open-loop figures beside the paper's Fig. 2 values."""
-    from isp_twin.open_loop import PAPER_FIG2
+    from isp_twin.experiments.open_loop import PAPER_FIG2
 
     print(f"\nopen loop, {axis}, engine {engine}: after {skip:g} s of start-up")
     print(f"{'regime':<8} {'peak [deg/s]':>13}")

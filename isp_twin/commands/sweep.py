@@ -105,11 +105,11 @@ class _ProgressPrinter:
 
 
 def execute(args: argparse.Namespace) -> int:
-    from isp_twin.sweep.design import load_sweep
-    from isp_twin.sweep.execute import execute as run_sweep
-    from isp_twin.sweep.execute import worker_count
-    from isp_twin.sweep.store import ResultStore
-    from isp_twin.sweep.summary import format_summary, plot_knobs, summarize
+    from isp_twin.experiments.sweep.design import load_sweep
+    from isp_twin.experiments.sweep.execute import execute as run_sweep
+    from isp_twin.experiments.sweep.execute import worker_count
+    from isp_twin.experiments.sweep.store import ResultStore
+    from isp_twin.experiments.sweep.summary import format_summary, plot_knobs, summarize
 
     if args.workers is not None and args.workers < 1:
         raise ScenarioError(f"--workers must be >= 1, got {args.workers}")

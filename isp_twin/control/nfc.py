@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from isp_twin.friction import regime_of, side_of, sliding, stiction
-from isp_twin.parameters import RateParams
+from isp_twin.model.friction import regime_of, side_of, sliding, stiction
+from isp_twin.model.parameters import RateParams
 
 __all__ = ["FrictionFeedForward"]
 

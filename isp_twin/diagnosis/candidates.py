@@ -20,9 +20,9 @@ import numpy as np
 from isp_twin.diagnosis.fit import FitResult, FitStatus, lm_steps, solve_many
 from isp_twin.diagnosis.residual import ResidualContext, residual_context
 from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
-from isp_twin.effects import effect_class
-from isp_twin.parameters import RATE_LAYOUT, EffectSpec
-from isp_twin.rate_layout import CandidateLayout
+from isp_twin.model.effects import effect_class
+from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec
+from isp_twin.model.rate_layout import CandidateLayout
 
 __all__ = [
     "BASELINE",

@@ -26,9 +26,8 @@ from isp_twin.diagnosis.selection import MIN_GAIN, Verdict, judge, select
 from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
 from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
-from isp_twin.effects import EFFECTS, effect_class
 from isp_twin.errors import DataError, ParameterError, nearest
-from isp_twin.identification import (
+from isp_twin.identification.fit import (
     JOINT_FORMS,
     TIMINGS,
     JointEstimate,
@@ -39,12 +38,13 @@ from isp_twin.identification import (
     rmse,
     side_angle,
 )
-from isp_twin.identification import Settings as IdSettings
-from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
-from isp_twin.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
-from isp_twin.substep_model import DEFAULT_INTEGRATION, Integration
+from isp_twin.identification.fit import Settings as IdSettings
+from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
+from isp_twin.identification.verdict import CONVERGED_RATIO, json_safe
+from isp_twin.model.effects import EFFECTS, effect_class
+from isp_twin.model.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.units import DEG
-from isp_twin.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.vocabulary import SIDE_L, SIDE_R
 
 __all__ = ["LIBRARY", "Diagnosis", "RoundResult", "diagnose", "split_in_time"]
@@ -368,12 +368,12 @@ def diagnose(
         cv_iter: iterations per cross-validation fold (warm-started).
         side: half-plane of the regimes: ``measured`` (the measured angle
             fused with the integrated rate, read at the time `identify` finds
-            for the data: `isp_twin.identification.side_angle`), ``right`` or
+            for the data: `isp_twin.identification.fit.side_angle`), ``right`` or
             ``left`` (fixed: a motor that spins freely, where the split means
             nothing).
         seed: seed of the base model's global search.
         base_search: fit the base model (no new effect) with the global
-            method of `isp_twin.identification.identify` before the rounds
+            method of `isp_twin.identification.fit.identify` before the rounds
             (and refit the winner the same way with its effect held), so
             that no effect is asked to explain a base model the optimizer
             left short of its best; False (default): start from the file,
@@ -385,7 +385,7 @@ def diagnose(
             parameter file was identified with; `Integration`).
         timing: the data's read-out timing when known (`Timing`); None:
             found by the base model's global search (`base_search`), else
-            the one of `isp_twin.identification.TIMINGS` that fits best at
+            the one of `isp_twin.identification.fit.TIMINGS` that fits best at
             the file's parameters, as `identify` chooses it.
         reopen: re-start the `REOPEN_TOP` leading significant candidates'
             rate parameters from the equation-error start with their effect
@@ -397,7 +397,7 @@ def diagnose(
             (docs/diagnosis.md "Re-opened rate parameters").
         joint: in round 1, restart the leading candidates (and the base)
             from base and effect estimated together
-            (`isp_twin.identification.joint_equation_error_estimate`),
+            (`isp_twin.identification.fit.joint_equation_error_estimate`),
             refine them jointly, and refit the leading significant one
             globally when it is not at the noise (docs/diagnosis.md "Joint
             start"); False: the local refits alone (before issue 8's joint

@@ -1,7 +1,7 @@
 """Several measured runs simulated side by side, for a batch of model variants.
 
 The runs become rows of one batched call of
-`isp_twin.substep_model.simulate_substeps` (padded to the longest), so P parameter sets on R runs cost one time loop of
+`isp_twin.model.substep_model.simulate_substeps` (padded to the longest), so P parameter sets on R runs cost one time loop of
 P*R rows: the per-step overhead, not the batch size, sets the price.
 """
 
@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from isp_twin.effects.batched import make_batched
 from isp_twin.errors import DataError
-from isp_twin.measured import SAMPLE_PERIOD_TOLERANCE
-from isp_twin.parameters import EffectSpec, RateParams
-from isp_twin.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
+from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE
+from isp_twin.model.effects.batched import make_batched
+from isp_twin.model.parameters import EffectSpec, RateParams
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
 
 __all__ = ["WARMUP", "RunStack", "predict", "residuals", "residuals_many", "stack_runs"]
 
@@ -36,9 +36,9 @@ class RunStack:
             paper's rule), else a fixed side (`SIDE_R`, `SIDE_L`) for a freely
             spinning motor.
         gyro_average: the model's rate is read as a gyro averaging over the
-            sample (`isp_twin.identification.Timing`).
+            sample (`isp_twin.identification.fit.Timing`).
         integration: how the model integrates a sample
-            (`isp_twin.substep_model.Integration`).
+            (`isp_twin.model.substep_model.Integration`).
     """
 
     names: tuple[str, ...]
@@ -74,7 +74,7 @@ def stack_runs(
     gyro_average: bool = False,
     integration: Integration = DEFAULT_INTEGRATION,
 ) -> RunStack:
-    """Stack runs (`isp_twin.measured.MeasuredData` or anything with
+    """Stack runs (`isp_twin.identification.measured.MeasuredData` or anything with
     ``name, u, omega, angle, dt``).
 
     Raises:
@@ -201,7 +201,7 @@ def residuals_many(
     Returns:
         One array (P_i, M) per request [rad/s].
     """
-    from isp_twin.effects import effect_class
+    from isp_twin.model.effects import effect_class
 
     sizes = [np.atleast_2d(x).shape[0] for x, _, _ in requests]
     total = sum(sizes)

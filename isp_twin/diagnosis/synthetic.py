@@ -14,10 +14,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from isp_twin.axis_model import simulate
-from isp_twin.effects import make_effect
-from isp_twin.measured import MeasuredData
-from isp_twin.parameters import EffectSpec, RateParams
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.axis_model import simulate
+from isp_twin.model.effects import make_effect
+from isp_twin.model.parameters import EffectSpec, RateParams
 
 __all__ = ["EFFECT_RANGES", "excitation", "make_run", "random_effect"]
 

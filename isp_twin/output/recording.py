@@ -29,6 +29,7 @@ import rerun as rr
 
 import isp_twin
 from isp_twin.errors import DataError
+from isp_twin.experiments.results import RunResult
 from isp_twin.output.entities import (
     RAD_TO_DEG,
     TIMELINE,
@@ -40,7 +41,6 @@ from isp_twin.output.entities import (
 from isp_twin.output.kinematics import BORESIGHT, JOINTS, joint_quaternions, line_of_sight
 from isp_twin.output.layout import isolation_titles, residual_blueprint, run_blueprint
 from isp_twin.output.rerun_writer import write_recording
-from isp_twin.results import RunResult
 
 __all__ = ["default_recording_path", "record_residuals", "record_run"]
 

@@ -1,7 +1,7 @@
 """The reference axis: continuous-time physics, its integrator and stick logic.
 
 One gimbal axis in continuous time, written independently of the project's
-Eq. 6 model (`isp_twin.axis_model`), so that fitting that model to these data
+Eq. 6 model (`isp_twin.model.axis_model`), so that fitting that model to these data
 is a test of the fit and not of the code that made the data::
 
     J1 dw/dt = Km_r u_amp(t) - eta_r w - F_r(w) - T_bristle + T_effects(theta) + T_payload

@@ -1,7 +1,7 @@
 """The reference simulator's own physics of each effect of the project's library.
 
 Each effect is a frozen dataclass in physical units (N·m, rad, digits) with
-``name``, the name of the matching effect of the project (`isp_twin.effects`),
+``name``, the name of the matching effect of the project (`isp_twin.model.effects`),
 and ``truth(axis)``: its parameters written in that effect's names and units,
 so a fit can be judged against the truth (torques become accelerations
 torque / J with J the total inertia of the axis). Nothing here is imported from

@@ -20,7 +20,7 @@ sample, at stick/breakaway instants, and for the default averaged gyro, whose
 reading lags the point value by half a sample (a term in u[k] of size about
 gain/2 appears; relative error of order T / (2 J/eta)).
 
-Effects are written in the project's parameter names (`isp_twin.effects`):
+Effects are written in the project's parameter names (`isp_twin.model.effects`):
 torques become accelerations torque / J [rad/s^2] with J the total inertia.
 The project's discrete model adds such an acceleration as ``accel * T`` per
 sample; the exact zero-order-hold factor would be ``(1 - pole) J / (eta T)``,

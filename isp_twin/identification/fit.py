@@ -1,0 +1,1349 @@
+"""Identification of the per-regime parameters of Eq. 6 from open-loop runs.
+
+The pipeline (Eq. 8-9 of the paper, made identifiable):
+
+1. **What the data determine.** Rate data fix only the rate form of Eq. 6
+   (`RateParams`): per regime the pole a, the gain b·Ke, the static and
+   Coulomb levels b·Ts, b·Tc and the curve factor alpha (20 numbers per
+   axis). b alone is the paper's "multi-value problem": scaling b up and
+   Ke, Ts, Tc down leaves every response unchanged. b is therefore **fixed to
+   its prior** (default the paper's Table 2) and Ke, Ts, Tc follow from the
+   identified products; b gets no confidence interval.
+2. **Which regimes the data visit.** A regime (side of the angle x direction)
+   with fewer than `Settings.min_regime_samples` moving samples is not
+   identified: its five numbers are frozen at the prior, it is written with
+   ``identified: false`` and gets no interval.
+3. **Initial estimate.** One-step-ahead (equation-error) least squares per
+   regime, with the physical bounds: for a fixed alpha, Eq. 6 is linear in
+   (a, b·Ke, b·Tc, b·(Ts-Tc)), and break-away samples add b·Ke and b·Ts;
+   alpha is found by a grid. Nothing comes from the prior's values.
+4. **Local refinement.** `scipy.optimize.least_squares` on Eq. 9's residual
+   vector in log variables (`_to_z`) with limits from the data
+   (`_z_limits`), a batched finite-difference Jacobian; then the read-out
+   timing (`Timing`) is chosen from the data and the fit refined with it.
+5. **Global search**, only when the fit is still above
+   `Settings.converged_ratio` noise floors: differential evolution (scipy,
+   seeded, vectorized: the population is the batch dimension of
+   `isp_twin.model.axis_model.simulate`) in a box around the best point, then
+   least squares again. The result is taken in the form the parameter file
+   stores (6 digits), moved off a stick/slip threshold if the rounding would
+   spoil the fit (`_robust_to_storage`).
+6. **Confidence intervals** from the Jacobian: ``cov = s^2 (J^T J)^-1``,
+   inflated by ``(1 + rho)/(1 - rho)`` for a lag-1 residual correlation
+   rho > 0 (effective sample size), with the Student t quantile. A
+   quantity is reported identifiable when its regime is visited and its
+   interval, computed with a noise floor of 0.1 % of the rate RMS, is below
+   half its value (so noise-free data does not make everything "identifiable").
+
+The simulation is driven by the measured angle (teacher forcing) to pick the
+half-plane: the friction depends on where the gimbal really is, and a
+simulated angle that drifts by a fraction of a degree would switch regimes at
+the wrong time and make the cost jump. Eq. 6 switches regime exactly at
+angle 0, so even resolver quantization matters: one LSB (0.0055 deg) at
+3 deg/s moves the crossing by two samples, and the L and R dynamics differ so
+much that the rate error then lasts tens of samples. The side is therefore
+taken from the angle fused with the integrated gyro rate (`fused_angle`);
+``side_source="raw"`` uses the angle as measured. For a free-spinning motor
+(angle of many turns) the half-plane split has no meaning: the side source
+(`Settings.side_source`, CLI ``--side``) can fix the side (``right``/``left``)
+or wrap the angle to (-pi, pi] (``wrap``). A side source says where the side
+is read from; the side itself is `isp_twin.vocabulary`'s `SIDE_R`/`SIDE_L`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from isp_twin.errors import DataError, ParameterError
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.verdict import noise_floor_of
+from isp_twin.model.effects import Effect, make_effect
+from isp_twin.model.effects.batched import make_batched
+from isp_twin.model.friction import regime_index
+from isp_twin.model.parameters import (
+    REGIMES,
+    AxisParams,
+    EffectSpec,
+    FittedWith,
+    RateParams,
+    RegimeParams,
+)
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
+from isp_twin.units import DEG
+
+__all__ = [
+    "RATE_FIELDS",
+    "SIDE_SOURCES",
+    "TIMINGS",
+    "Timing",
+    "fitted_with",
+    "recorded_model",
+    "gyro_reading",
+    "rate_noise",
+    "Settings",
+    "IdentificationResult",
+    "fused_angle",
+    "side_angle",
+    "regime_visits",
+    "equation_error_estimate",
+    "JOINT_FORMS",
+    "JointEstimate",
+    "joint_equation_error_estimate",
+    "simulate_data",
+    "residuals",
+    "rmse",
+    "identify",
+    "to_axis_params",
+    "stored_form",
+]
+
+#: Names of the five rate-form quantities per regime, `RateParams.to_vector` order.
+RATE_FIELDS: tuple[str, ...] = ("pole", "gain", "static", "coulomb", "alpha")
+#: Side sources: where each step's side (R/L half-plane) is read from (the
+#: fused or raw measured angle, the wrapped angle, or a fixed side).
+SIDE_SOURCES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
+#: Window of the angle/rate fusion [samples] (`fused_angle`).
+FUSION_WINDOW = 201
+
+#: Noise floor for the identifiability test, relative to the rate RMS.
+_REFERENCE_NOISE = 1e-3
+#: Largest relative 95 % half-width of an identifiable quantity.
+_MAX_RELATIVE_CI = 0.5
+
+
+@dataclass(frozen=True)
+class Timing:
+    """What a sample of the data means in time, for the model's read-out.
+
+    Attributes:
+        side_shift: when in each step the half-plane is read [steps after
+            the step's start; a step is a sample for Eq. 6, a sub-step for
+            the sub-stepped model] (`side_angle`).
+        gyro_average: the gyro reports the rate averaged over the sample
+            period (most rate sensors integrate or filter), modelled as the
+            mean of the model's rate at both ends of the step; else the rate
+            at the sample instant (Eq. 6 as written).
+    """
+
+    side_shift: float = 0.0
+    gyro_average: bool = False
+
+    def describe(self) -> str:
+        kind = "averaged over the sample" if self.gyro_average else "at the sample"
+        return f"gyro rate {kind}, half-plane read at step start + {self.side_shift:g} step"
+
+
+#: Read-out timings tried by `identify` (``side_source="measured"``); the paper's Eq. 6 first.
+TIMINGS: tuple[Timing, ...] = tuple(
+    Timing(shift, avg) for avg in (False, True) for shift in (0.0, 0.25, 0.5, 0.75)
+)
+
+
+def fitted_with(integration: Integration, timing: Timing) -> FittedWith:
+    """The parameter file's record (`FittedWith`) of a fit's model and read-out timing."""
+    return FittedWith(
+        substeps=int(integration.substeps),
+        midpoint_friction=bool(integration.midpoint_friction),
+        split_reversals=bool(integration.split_reversals),
+        exact_effect_hold=bool(integration.exact_effect_hold),
+        gyro_average=bool(timing.gyro_average),
+        side_shift_steps=float(timing.side_shift),
+    )
+
+
+def recorded_model(record: FittedWith) -> tuple[Integration, Timing]:
+    """The model integration and read-out timing a `FittedWith` record names."""
+    integration = Integration(
+        record.substeps,
+        record.midpoint_friction,
+        record.split_reversals,
+        record.exact_effect_hold,
+    )
+    return integration, Timing(record.side_shift_steps, record.gyro_average)
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Identification settings.
+
+    Attributes:
+        seed: seed of the evolutionary search (same seed -> same result).
+        generations: differential-evolution generations (0: skip the search).
+        population: population size per generation.
+        refine: run the least-squares refinement.
+        refine_evaluations: budget of the refinement [Jacobian evaluations].
+        min_regime_samples: moving samples below which a regime is not identified.
+        rest_rate_deg_s: |rate| at or below this counts as "at rest" [deg/s].
+        side_source: where the side is read from, one of `SIDE_SOURCES`.
+        confidence: level of the intervals.
+        converged_ratio: the global search runs when the least-squares fit
+            from the data's own start ends above this multiple of the rate
+            noise (`rate_noise`).
+        prior_in_search: also start from the prior's values (by default the
+            prior only supplies b, unvisited regimes and held effects).
+        timing: the data's read-out timing (`Timing`); None: the one of
+            `TIMINGS` that fits best (``side_source="measured"``; else Eq. 6's).
+        integration: how the model integrates a sample
+            (`isp_twin.model.substep_model.Integration`; `EQ6` is the paper's Eq. 6).
+    """
+
+    seed: int = 0
+    generations: int = 20
+    population: int = 40
+    refine: bool = True
+    refine_evaluations: int = 200
+    min_regime_samples: int = 50
+    rest_rate_deg_s: float = 0.1
+    side_source: str = "measured"
+    confidence: float = 0.95
+    converged_ratio: float = 1.2
+    prior_in_search: bool = False
+    timing: Timing | None = None
+    integration: Integration = DEFAULT_INTEGRATION
+
+    def __post_init__(self):
+        if self.side_source not in SIDE_SOURCES:
+            raise ParameterError(
+                f"side source '{self.side_source}' unknown; allowed: {', '.join(SIDE_SOURCES)}"
+            )
+        if self.population < 5 or self.generations < 0:
+            raise ParameterError("population >= 5 and generations >= 0 required")
+
+
+@dataclass(frozen=True)
+class IdentificationResult:
+    """The outcome of `identify` for one axis.
+
+    Vectors of shape (20,) follow `RateParams.to_vector` order: per regime
+    (R+, R-, L+, L-) the quantities of `RATE_FIELDS`, SI rate form.
+
+    Attributes:
+        rate: identified rate-form parameters, arrays (4,).
+        ci95: 95 % half-widths, shape (20,); NaN where not identifiable.
+        identifiable: shape (20,), True where the data determine the quantity.
+        visits: moving samples per regime, shape (4,).
+        regime_identified: per regime, False where the prior was kept.
+        rmse_train: per training set, RMS rate error [rad/s].
+        cost: Eq. 9 over all training sets [rad/s].
+        history: best cost per generation, then per refinement step [rad/s].
+        initial_cost: Eq. 9 at the equation-error estimate [rad/s].
+        rho: lag-1 autocorrelation of the residuals.
+        evaluations: simulated parameter sets in total.
+        wall_time_s: duration [s].
+        status: short text on how the search ended.
+        settings: the settings used.
+        effects: the prior's extra effects, held fixed in every simulation
+            of the fit (and of the report).
+        timing: the read-out timing the fit used (`Timing`).
+        noise: white rate-noise standard deviation of the data (`rate_noise`),
+            the error a perfect model leaves [rad/s].
+        integration: how the fitted model integrates a sample (`Integration`).
+    """
+
+    rate: RateParams
+    ci95: np.ndarray
+    identifiable: np.ndarray
+    visits: np.ndarray
+    regime_identified: tuple[bool, ...]
+    rmse_train: dict[str, float]
+    cost: float
+    history: tuple[float, ...]
+    initial_cost: float
+    rho: float
+    evaluations: int
+    wall_time_s: float
+    status: str
+    settings: Settings = field(default_factory=Settings)
+    effects: tuple[EffectSpec, ...] = ()
+    timing: Timing = Timing()
+    noise: float = float("nan")
+    integration: Integration = DEFAULT_INTEGRATION
+
+    @property
+    def vector(self) -> np.ndarray:
+        return self.rate.to_vector()
+
+
+# ------------------------------------------------------------ data views
+
+
+def fused_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
+    """The measured angle refined by the integrated rate [rad], shape (N,).
+
+    ``integral(omega) + smooth(angle - integral(omega))`` with a centred moving
+    average of `window` samples: the rate supplies the fine timing, the angle
+    the absolute level (and removes gyro drift slower than the window).
+    """
+    integral = np.cumsum(data.omega) * data.dt
+    gap = data.angle - integral
+    n = gap.shape[0]
+    w = max(1, min(window, n if n % 2 else n - 1))
+    padded = np.pad(gap, w // 2, mode="edge")
+    smooth = np.convolve(padded, np.ones(w) / w, mode="valid")
+    return integral + smooth
+
+
+def side_angle(data: MeasuredData, side_source: str = "measured", shift: float = 0.0) -> np.ndarray:
+    """The angle [rad] whose sign selects the half-plane of each step (see module doc).
+
+    Entry k picks the regime of the step from sample k to k+1. With
+    ``measured`` it is the fused angle at sample ``k + shift`` (linear
+    interpolation). Eq. 6 takes the angle at the start of the step
+    (``shift = 0``), but a real axis crosses angle 0 between samples and what
+    its gyro sample means decides which time is right: a point-sampled rate
+    is the rate at the sample, so the regime holding for most of the step is
+    the one at mid-step (``shift = 0.5``); a rate averaged over the sample
+    period describes the half sample before it (``shift = 0``). A wrong
+    choice makes every crossing half a sample early or late, an error of the
+    size of the friction change that then decays with the pole (20-30 noise
+    sigmas on a 10 ms axis). `identify` picks the shift from the data.
+    """
+    if side_source == "measured":
+        y = fused_angle(data)
+        if shift == 0.0:
+            return y
+        k = np.arange(y.size, dtype=float)
+        return np.interp(k + shift, k, y)
+    if side_source == "raw":
+        return data.angle
+    if side_source == "wrap":
+        return np.angle(np.exp(1j * data.angle))
+    if side_source == "right":
+        return np.ones_like(data.angle)
+    if side_source == "left":
+        return -np.ones_like(data.angle)
+    raise ParameterError(f"side source '{side_source}' unknown; allowed: {', '.join(SIDE_SOURCES)}")
+
+
+def regime_visits(
+    data: Sequence[MeasuredData], side_source: str = "measured", rest_rate_deg_s: float = 0.1
+) -> np.ndarray:
+    """Moving samples (|rate| above the rest level) per regime, shape (4,)."""
+    counts = np.zeros(4, dtype=int)
+    for d in data:
+        moving = np.abs(d.omega) > rest_rate_deg_s * DEG
+        r = regime_index(side_angle(d, side_source), d.omega)[moving]
+        counts += np.bincount(r, minlength=4)
+    return counts
+
+
+def _omega0(d: MeasuredData, rest: float) -> float:
+    return 0.0 if abs(d.omega[0]) <= rest else float(d.omega[0])
+
+
+def simulate_data(
+    rate: RateParams,
+    d: MeasuredData,
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+):
+    """The model (Eq. 6 in `integration`'s sub-steps) driven by the run's
+    command and measured angle; `AxisResponse`.
+
+    `effects` (a parameter file's ``effects:``) are held fixed; they are built
+    afresh for every simulation because they carry state. With
+    ``timing.gyro_average`` the returned rate is what a gyro averaging over
+    each sample period reads (`Timing`).
+    """
+    return simulate_substeps(
+        rate,
+        d.u,
+        d.dt,
+        omega0=_omega0(d, rest_rate_deg_s * DEG),
+        angle0=float(d.angle[0]),
+        angle_measured=side_angle(d, side_source, timing.side_shift / integration.substeps),
+        effects=[make_effect(e, d.dt) for e in effects],
+        integration=integration,
+        gyro_average=timing.gyro_average,
+    )
+
+
+def gyro_reading(omega: np.ndarray, average: bool) -> np.ndarray:
+    """What the gyro reads of the model's rate, shape (..., N) along time.
+
+    ``average``: the mean of the rate at both ends of each step (a gyro that
+    averages over the sample period); else the rate itself.
+    """
+    if not average:
+        return omega
+    out = np.array(omega, dtype=float, copy=True)
+    out[..., 1:] = 0.5 * (omega[..., 1:] + omega[..., :-1])
+    return out
+
+
+def residuals(
+    rate: RateParams,
+    data: Sequence[MeasuredData],
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+) -> np.ndarray:
+    """Simulated minus measured rate [rad/s], sample 0 of each set left out.
+
+    Shape (P, M) for batched params (M = total samples), else (M,). All runs
+    are simulated side by side as rows of one batch (shorter runs padded
+    with a zero command after their end, which cannot reach back), so the
+    time loop is as long as the longest run, not the sum.
+    """
+    single = np.ndim(rate.pole) == 1
+    vec = np.atleast_2d(rate.to_vector())
+    n_sets, n_runs = vec.shape[0], len(data)
+    n = max(len(d) for d in data)
+    u = np.zeros((n_runs, n))
+    y = np.zeros((n_runs, n))
+    for i, d in enumerate(data):
+        u[i, : len(d)] = d.u
+        y[i, : len(d)] = side_angle(d, side_source, timing.side_shift / integration.substeps)
+        y[i, len(d) :] = y[i, len(d) - 1]
+    rest = rest_rate_deg_s * DEG
+    w0 = np.array([_omega0(d, rest) for d in data])
+    a0 = np.array([float(d.angle[0]) for d in data])
+    resp = simulate_substeps(
+        RateParams.from_vector(np.repeat(vec, n_runs, axis=0)),
+        np.tile(u, (n_sets, 1)),
+        data[0].dt,
+        omega0=np.tile(w0, n_sets),
+        angle0=np.tile(a0, n_sets),
+        angle_measured=np.tile(y, (n_sets, 1)),
+        effects=[make_effect(e, data[0].dt) for e in effects],
+        integration=integration,
+        gyro_average=timing.gyro_average,
+    )
+    omega = resp.omega.reshape(n_sets, n_runs, n)
+    parts = [omega[:, i, 1 : len(d)] - d.omega[1:] for i, d in enumerate(data)]
+    out = np.concatenate(parts, axis=-1)
+    return out[0] if single else out
+
+
+def rmse(
+    rate: RateParams,
+    data: Sequence[MeasuredData],
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+) -> float | np.ndarray:
+    """Eq. 9: RMS rate error over all sets at once [rad/s]."""
+    e = residuals(rate, data, side_source, rest_rate_deg_s, effects, timing, integration)
+    return np.sqrt(np.mean(e**2, axis=-1))
+
+
+# ------------------------------------------------------------ initial estimate
+
+
+def equation_error_estimate(
+    data: Sequence[MeasuredData],
+    prior: RateParams,
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    min_samples: int = 50,
+    effects: Sequence[EffectSpec] = (),
+) -> RateParams:
+    """One-step-ahead least squares per regime (see module doc, step 3).
+
+    For each alpha of a grid spanning four decades of ``alpha*|omega|`` (from
+    a Stribeck part that is a straight line over the measured speeds to one
+    that has decayed after the first sample), Eq. 6 is linear in (a, b·Ke,
+    b·Tc, b·(Ts-Tc)); the fit is solved with the physical bounds (0 <= a < 1,
+    b·Ke >= 0, b·Tc >= 0, Ts >= Tc), so a nearly collinear Stribeck column
+    (small alpha: ``exp(-alpha|w|)`` ~ ``1 - alpha|w|``, a mix of sign(w)
+    and w) cannot push the levels to unphysical values. Regimes with fewer
+    than `min_samples` usable samples keep the prior. Known `effects` are
+    driven by the measured angle and rate (`_effect_drive`) and taken out of
+    the regression. The rest level used to pick moving samples is at least
+    four times the rate noise (`rate_noise`): noisy samples of an axis at rest
+    would otherwise enter as motion.
+    """
+    from scipy.optimize import lsq_linear
+
+    noise = rate_noise(data)
+    rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
+    rows: list[list[np.ndarray]] = [[] for _ in range(4)]
+    speeds = []
+    for d in data:
+        w0, w1 = d.omega[:-1], d.omega[1:]
+        y = side_angle(d, side_source)[:-1]
+        u0, more = _effect_drive(d, y, effects)
+        w1 = w1 - more
+        moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
+        # A breakaway moves the way the total drive (command and known
+        # effects) pushes: its direction is that of the motion it starts.
+        breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest)
+        r_move = regime_index(y, w0)
+        r_break = regime_index(y, w1)
+        speeds.append(np.abs(w0[moving]))
+        for r in range(4):
+            m = moving & (r_move == r)
+            b = breakaway & (r_break == r)
+            rows[r].append(
+                np.column_stack(
+                    [
+                        np.r_[w0[m], np.zeros(b.sum())],
+                        np.r_[u0[m], u0[b]],
+                        np.r_[np.sign(w0[m]), np.sign(w1[b])],
+                        np.r_[np.abs(w0[m]), np.zeros(b.sum())],
+                        np.r_[np.zeros(m.sum()), np.ones(b.sum())],
+                        np.r_[w1[m], w1[b]],
+                    ]
+                )
+            )
+    x = prior.to_vector().reshape(4, 5).copy()
+    speed = np.concatenate(speeds) if speeds else np.empty(0)
+    if speed.size == 0:
+        return RateParams.from_vector(x.ravel())
+    typical = float(np.sqrt(np.mean(speed**2)))
+    grid = np.geomspace(1e-2, 1e2, 41) / typical
+    for r in range(4):
+        table = np.concatenate(rows[r]) if rows[r] else np.empty((0, 6))
+        if table.shape[0] < min_samples:
+            continue
+        w0, u0, sgn, speed_r, brk, w1 = table.T
+        # Columns scaled to unit norm: u is in digits, the rest in rad/s.
+        best = None
+        for alpha in grid:
+            shape = np.where(brk > 0, 1.0, np.exp(-alpha * speed_r))
+            a_mat = np.column_stack([w0, u0, -sgn, -sgn * shape])
+            norm = np.linalg.norm(a_mat, axis=0)
+            norm = np.where(norm > 0, norm, 1.0)
+            fit = lsq_linear(
+                a_mat / norm,
+                w1,
+                bounds=(np.zeros(4), np.array([1.0 - 1e-9, np.inf, np.inf, np.inf]) * norm),
+                method="bvls",
+            )
+            sse = float(np.sum(fit.fun**2))
+            if best is None or sse < best[0]:
+                best = (sse, fit.x / norm, alpha)
+        _, (a, g, c, s_minus_c), alpha = best
+        a = min(max(a, 1e-6), 1.0 - 1e-9)
+        x[r] = (a, max(g, 1e-12), c + s_minus_c + 1e-12, c + 1e-12, alpha)
+    return RateParams.from_vector(x.ravel())
+
+
+#: Effects whose acceleration is linear in its strengths for given shape
+#: parameters: name -> (shape parameters searched on a grid, strength columns).
+_LINEAR_TORQUES = ("cogging", "unbalance", "cable_spring")
+#: Effects acting on the command, their one parameter searched on a grid.
+_COMMAND_EFFECTS = {
+    "input_delay": "delay_s",
+    "deadzone": "width_digits",
+    "saturation": "limit_digits",
+}
+
+
+@dataclass(frozen=True)
+class _Rows:
+    """The one-step-ahead regression rows of the runs (`equation_error_estimate`).
+
+    Arrays of shape (K,) over the usable samples of all runs: the regime, the
+    rate before and after the step [rad/s], the sign, the speed, 1 on
+    breakaway rows, the angle of the half-plane [rad], and the index of the
+    sample in the concatenated (N-1)-long steps of the runs (to pick command
+    columns transformed by a command effect).
+    """
+
+    regime: np.ndarray
+    w0: np.ndarray
+    w1: np.ndarray
+    u0: np.ndarray
+    sgn: np.ndarray
+    speed: np.ndarray
+    brk: np.ndarray
+    y: np.ndarray
+    step: np.ndarray
+
+
+def _regression_rows(data, side_source, rest, effects) -> _Rows:
+    """Moving and breakaway samples of all runs, known `effects` taken out."""
+    parts = []
+    offset = 0
+    for d in data:
+        w0, w1 = d.omega[:-1], d.omega[1:]
+        y = side_angle(d, side_source)[:-1]
+        u0, more = _effect_drive(d, y, effects)
+        w1 = w1 - more
+        moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
+        # A breakaway moves the way the total drive (command and known
+        # effects) pushes: its direction is that of the motion it starts.
+        breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest)
+        use = moving | breakaway
+        regime = np.where(moving, regime_index(y, w0), regime_index(y, w1))
+        parts.append(
+            (
+                regime[use],
+                np.where(moving, w0, 0.0)[use],
+                w1[use],
+                u0[use],
+                np.where(moving, np.sign(w0), np.sign(w1))[use],
+                np.where(moving, np.abs(w0), 0.0)[use],
+                breakaway[use].astype(float),
+                y[use],
+                offset + np.flatnonzero(use),
+            )
+        )
+        offset += w0.size
+    cols = [np.concatenate([p[i] for p in parts]) for i in range(9)]
+    return _Rows(*cols)
+
+
+#: Effects `joint_equation_error_estimate` estimates with the base.
+JOINT_FORMS: tuple[str, ...] = _LINEAR_TORQUES + tuple(_COMMAND_EFFECTS)
+
+
+@dataclass(frozen=True)
+class JointEstimate:
+    """Base and one effect estimated together (`joint_equation_error_estimate`).
+
+    Attributes:
+        rate: rate-form parameters of Eq. 6 (`RateParams`).
+        effect: the effect with its estimated parameters (None: base alone).
+        sse: one-step-ahead sum of squared errors with the effect [(rad/s)^2].
+        sse_base: the same without the effect (same rows and alphas) [(rad/s)^2].
+    """
+
+    rate: RateParams
+    effect: EffectSpec | None
+    sse: float
+    sse_base: float
+
+
+def joint_equation_error_estimate(
+    data: Sequence[MeasuredData],
+    prior: RateParams,
+    candidate: EffectSpec,
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    min_samples: int = 50,
+    effects: Sequence[EffectSpec] = (),
+    passes: int = 2,
+) -> JointEstimate:
+    """Base and candidate effect estimated together by one-step-ahead least squares.
+
+    `equation_error_estimate` fits each regime alone with known effects taken
+    out; here the candidate's unknown parameters join the regression, so
+    they are not estimated on a base that has absorbed the effect into its
+    friction levels. One block problem: each regime's columns (rate, command,
+    Coulomb and Stribeck signs, with the regime's alpha fixed at its best of
+    the per-regime grid) on its own rows, the effect's columns shared by all
+    rows; bounded as in `equation_error_estimate` (bvls on unit-norm columns).
+
+    * torque effects linear in their strengths: cogging
+      ``T (s sin(2 pi y/P) + c cos(2 pi y/P))`` with the period P on a grid of
+      +-3 % around `candidate`'s (a residual periodogram finds it; the
+      strengths come from here), unbalance ``T (s sin y + c cos y)``, cable
+      spring ``-T k y`` (its offset is a constant torque, exactly a shift of
+      the per-direction friction levels: held at `candidate`'s);
+    * command effects (input delay, dead zone, saturation): the command
+      column transformed by the effect on a grid of its parameter;
+    * others (no linear form): `candidate` held, base re-estimated.
+
+    Alphas and effect are estimated in turn `passes` times (alphas with the
+    effect held, then the block problem). Returns the rate parameters, the
+    candidate with the estimated parameters (others as given) and both
+    equation-error costs (`JointEstimate`).
+    """
+    from scipy.optimize import lsq_linear
+
+    name = candidate.name
+    current = EffectSpec(name, dict(candidate.params))
+    fixed = tuple(effects)
+    if name not in _LINEAR_TORQUES and name not in _COMMAND_EFFECTS:
+        x = equation_error_estimate(
+            data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
+        )
+        return JointEstimate(x, current, float("nan"), float("nan"))
+    noise = rate_noise(data)
+    rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
+    dt = data[0].dt
+    rows = _regression_rows(data, side_source, rest, fixed)
+    regimes = [r for r in range(4) if np.sum(rows.regime == r) >= min_samples]
+    if not regimes:
+        return JointEstimate(prior, current, float("nan"), float("nan"))
+    # The command of every step after the fixed effects [digits], (sum N-1,).
+    u_all = np.concatenate(
+        [_effect_drive(d, side_angle(d, side_source)[:-1], fixed)[0] for d in data]
+    )
+    u_peak = float(np.max(np.abs(u_all))) or 1.0
+    x = prior.to_vector().reshape(4, 5).copy()
+
+    def torque_columns(shape: float) -> np.ndarray:
+        y = rows.y
+        if name == "cogging":
+            ph = 2.0 * np.pi * y / shape
+            return dt * np.column_stack([np.sin(ph), np.cos(ph)])
+        if name == "unbalance":
+            return dt * np.column_stack([np.sin(y), np.cos(y)])
+        return dt * (-y)[:, None]
+
+    def command_column(values: np.ndarray) -> np.ndarray:
+        """The command after the effect for each grid value, (G, sum N-1)."""
+        pname = _COMMAND_EFFECTS[name]
+        out = np.empty((values.size, u_all.size))
+        start = 0
+        for d in data:
+            n = len(d) - 1
+            eff = make_batched(name, {pname: values}, dt)
+            seg = u_all[start : start + n]
+            for k in range(n):
+                out[:, start + k] = eff.command(np.full(values.size, seg[k]))
+            start += n
+        return out
+
+    use = np.isin(rows.regime, regimes)
+    in_regime = [rows.regime[use] == r for r in regimes]
+    n_r = len(regimes)
+
+    def block(alpha: np.ndarray, w1: np.ndarray):
+        """The block problem at these alphas: a solver of (command, effect columns).
+
+        Columns per regime: rate, -sign, -sign * Stribeck shape (fixed here,
+        their Gram matrix formed once), then the command per regime and the
+        shared effect columns (varying over the grid); the bounded problem is
+        solved on the Cholesky factor of the Gram matrix of ``[A | w1]``
+        (``||A x - w1||^2 = ||R x - q||^2 + rest^2``: ~20 rows instead of
+        ~10^4), a relative 1e-12 ridge keeping it defined for collinear
+        columns. Columns are scaled to unit norm (u in digits, the rest rad/s).
+        """
+        f_mat = np.zeros((int(use.sum()), 3 * n_r))
+        w0, sgn, speed, brk = rows.w0[use], rows.sgn[use], rows.speed[use], rows.brk[use]
+        for i, r in enumerate(regimes):
+            m = in_regime[i]
+            shape = np.where(brk[m] > 0, 1.0, np.exp(-alpha[r] * speed[m]))
+            f_mat[m, 3 * i : 3 * i + 3] = np.column_stack([w0[m], -sgn[m], -sgn[m] * shape])
+        f_norm = np.linalg.norm(f_mat, axis=0)
+        f_norm = np.where(f_norm > 0, f_norm, 1.0)
+        f_mat /= f_norm
+        target = w1[use]
+        ff, ft, tt = f_mat.T @ f_mat, f_mat.T @ target, float(target @ target)
+
+        def solve(u0: np.ndarray, extra: np.ndarray):
+            """(sse, regime coefficients (n_r, 4) as (a, gain, Tc, Ts - Tc), effect coefficients)."""
+            k_e = extra.shape[1]
+            v_mat = np.zeros((f_mat.shape[0], n_r + k_e))
+            u0 = u0[use]
+            for i in range(n_r):
+                v_mat[in_regime[i], i] = u0[in_regime[i]]
+            v_mat[:, n_r:] = extra[use]
+            v_norm = np.linalg.norm(v_mat, axis=0)
+            v_norm = np.where(v_norm > 0, v_norm, 1.0)
+            v_mat /= v_norm
+            fv, vv, vt = f_mat.T @ v_mat, v_mat.T @ v_mat, v_mat.T @ target
+            n_c = 4 * n_r + k_e
+            gram = np.empty((n_c + 1, n_c + 1))
+            nf = 3 * n_r
+            gram[:nf, :nf], gram[:nf, nf:n_c], gram[nf:n_c, nf:n_c] = ff, fv, vv
+            gram[nf:n_c, :nf] = fv.T
+            gram[:nf, n_c], gram[nf:n_c, n_c], gram[n_c, n_c] = ft, vt, tt
+            gram[n_c, :n_c] = gram[:n_c, n_c]
+            gram[np.diag_indices_from(gram)] += 1e-12 * np.trace(gram)
+            tri = np.linalg.cholesky(gram).T
+            norm = np.r_[f_norm, v_norm]
+            lo = np.r_[np.zeros(nf + n_r), np.full(k_e, -np.inf)]
+            hi = np.full(n_c, np.inf)
+            hi[0:nf:3] = 1.0 - 1e-9
+            fit = lsq_linear(
+                tri[:n_c, :n_c], tri[:n_c, n_c], bounds=(lo * norm, hi * norm), method="bvls"
+            )
+            coef = fit.x / norm
+            sse = float(np.sum(fit.fun**2) + tri[n_c, n_c] ** 2)
+            fixed_c = coef[:nf].reshape(n_r, 3)
+            reg = np.column_stack(
+                [fixed_c[:, 0], coef[nf : nf + n_r], fixed_c[:, 1], fixed_c[:, 2]]
+            )
+            return sse, reg, coef[nf + n_r :]
+
+        return solve
+
+    cls = make_effect(current, dt).__class__
+    for _ in range(max(passes, 1)):
+        # Alphas (and a first base) with the current effect held.
+        base = (
+            equation_error_estimate(
+                data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
+            )
+            .to_vector()
+            .reshape(4, 5)
+        )
+        alpha = base[:, 4]
+        params = dict(current.params)
+        best = None
+        if name in _LINEAR_TORQUES:
+            w1 = rows.w1.copy()
+            if name == "cable_spring":
+                w1 = w1 - dt * params["offset_rad_s2"]
+            u0 = u_all[rows.step]
+            if name == "cogging":
+                p0 = params["period_rad"]
+                shapes = p0 * (1.0 + np.linspace(-0.03, 0.03, 61))
+            else:
+                shapes = np.array([0.0])
+            solve = block(alpha, w1)
+            for shape in shapes:
+                sse, reg, eff = solve(u0, torque_columns(shape))
+                if best is None or sse < best[0]:
+                    best = (sse, reg, eff, shape)
+            _, reg, eff, shape = best
+            if name == "cogging":
+                amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
+                params.update(amplitude_rad_s2=amp, period_rad=float(shape), phase_rad=ph)
+            elif name == "unbalance":
+                amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
+                params.update(amplitude_rad_s2=amp, phase_rad=ph)
+            else:
+                params.update(stiffness_1_s2=float(eff[0]))
+        else:
+            pname = _COMMAND_EFFECTS[name]
+            if name == "input_delay":
+                grid = np.arange(0.0, 40.5, 0.5) * dt
+            elif name == "deadzone":
+                grid = np.linspace(0.0, 0.4, 81) * u_peak
+            else:
+                grid = np.linspace(0.3, 1.0, 71) * u_peak
+            grid = np.union1d(grid, [params[pname]])
+            lo_b, hi_b = cls.bounds[pname]
+            grid = grid[(grid >= lo_b) & (grid <= hi_b)]
+            columns = command_column(grid)
+            solve = block(alpha, rows.w1)
+            for value, u_col in zip(grid, columns):
+                sse, reg, eff = solve(u_col[rows.step], np.zeros((rows.w0.size, 0)))
+                if best is None or sse < best[0]:
+                    best = (sse, reg, eff, value)
+            _, reg, eff, value = best
+            params[pname] = float(value)
+        for i, r in enumerate(regimes):
+            a, g, c, s_minus_c = reg[i]
+            a = min(max(a, 1e-6), 1.0 - 1e-9)
+            x[r] = (a, max(g, 1e-12), c + s_minus_c + 1e-12, c + 1e-12, alpha[r])
+        bounded = {p: float(np.clip(v, *cls.bounds[p])) for p, v in params.items()}
+        current = EffectSpec(name, bounded)
+        sse = best[0]
+    sse_base = block(alpha, rows.w1)(u_all[rows.step], np.zeros((rows.w0.size, 0)))[0]
+    return JointEstimate(RateParams.from_vector(x.ravel()), current, sse, sse_base)
+
+
+def rate_noise(data: Sequence[MeasuredData]) -> float:
+    """White rate-noise standard deviation of the measured runs [rad/s] (`noise_floor_of`)."""
+    return noise_floor_of([d.omega for d in data])
+
+
+def _effect_drive(
+    d: MeasuredData, side_y: np.ndarray, effects: Sequence[EffectSpec]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Command and extra rate drive of known effects along a run, shapes (N-1,).
+
+    Returns the command after the effects' `command` hooks [digits] and the
+    effects' acceleration times T [rad/s per sample], both evaluated on the
+    measured angle and rate (as `simulate` feeds them, one step late). Sensor
+    effects are not inverted: they only bias the start.
+    """
+    u = np.array(d.u[:-1], dtype=float)
+    more = np.zeros_like(u)
+    if not effects:
+        return u, more
+    built = [make_effect(e, d.dt) for e in effects]
+    if all(type(e).reset is Effect.reset for e in built):
+        # Effects without state are plain functions of the sample: whole run at once.
+        for e in built:
+            u = np.asarray(e.command(u), dtype=float) * np.ones_like(more)
+        for e in built:
+            more = more + np.asarray(e.acceleration(side_y[: u.size], d.omega[: u.size])) * d.dt
+        return u, more
+    for e in built:
+        e.reset()
+    for k in range(u.size):
+        for e in built:
+            u[k] = e.command(u[k])
+        more[k] = sum(float(e.acceleration(side_y[k], d.omega[k])) for e in built) * d.dt
+    return u, more
+
+
+# ------------------------------------------------------------ search
+
+
+#: Half-widths of the global-search box around the best point, per regime, in
+#: the log-parameters of `_to_z`: 1-a x/÷ 5, b·Ke x/÷ 3, b·Tc x/÷ 5,
+#: b·(Ts-Tc) x/÷ 20, alpha x/÷ 30.
+_Z_SPAN = np.log(np.array([5.0, 3.0, 5.0, 20.0, 30.0]))
+
+
+def _to_z(x: np.ndarray) -> np.ndarray:
+    """Rate-form vectors (..., 5k) -> search variables (..., 5k).
+
+    Per regime ``(log(1-a), log b·Ke, log b·Tc, log b·(Ts-Tc), log alpha)``:
+    positive by construction, Ts >= Tc always, and one relative scale for
+    quantities spanning many decades (the pole's time constant from 1 ms to
+    10 s, levels from 1e-6 to 1 rad/s per sample).
+    """
+    x = np.asarray(x, dtype=float)
+    r = x.reshape(*x.shape[:-1], -1, 5)
+    a, g, st, c, al = (r[..., i] for i in range(5))
+    tiny = 1e-300
+    gap = np.maximum(st - c, 1e-6 * np.maximum(c, tiny))
+    z = np.stack(
+        [
+            np.log(np.maximum(1.0 - a, 1e-12)),
+            np.log(np.maximum(g, tiny)),
+            np.log(np.maximum(c, tiny)),
+            np.log(np.maximum(gap, tiny)),
+            np.log(np.maximum(al, tiny)),
+        ],
+        axis=-1,
+    )
+    return z.reshape(x.shape)
+
+
+def _from_z(z: np.ndarray) -> np.ndarray:
+    """Inverse of `_to_z`."""
+    z = np.asarray(z, dtype=float)
+    r = z.reshape(*z.shape[:-1], -1, 5)
+    e = np.exp(r)
+    x = np.stack([1.0 - e[..., 0], e[..., 1], e[..., 2] + e[..., 3], e[..., 2], e[..., 4]], axis=-1)
+    return x.reshape(z.shape)
+
+
+def _z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, np.ndarray]:
+    """Limits of the search variables from the data and physics, shapes (n_free,).
+
+    Per regime: the time constant between 0.1 and 1e5 samples; the gain within
+    a factor 1e3 of the start; the levels between 1e-4 and 3 times the peak
+    drive (b·Ke times the largest command: a level below 1e-4 of it changes
+    no response, and a floor keeps the log-variables from sliding to -inf,
+    where their gradient vanishes); alpha*|omega|_rms between 1e-3 and 1e4.
+    """
+    r = np.asarray(x0, float).reshape(-1, 5)
+    drive = r[:, 1] * u_peak
+    lo = np.column_stack(
+        [
+            np.full(len(r), np.log(1e-5)),
+            np.log(r[:, 1] / 1e3),
+            np.log(1e-4 * drive),
+            np.log(1e-4 * drive),
+            np.full(len(r), np.log(1e-3 / speed)),
+        ]
+    )
+    hi = np.column_stack(
+        [
+            np.full(len(r), np.log(1.0 - np.exp(-10.0))),
+            np.log(r[:, 1] * 1e3),
+            np.log(3.0 * drive),
+            np.log(3.0 * drive),
+            np.full(len(r), np.log(1e4 / speed)),
+        ]
+    )
+    return lo.ravel(), hi.ravel()
+
+
+def _confidence(jac: np.ndarray, resid: np.ndarray, breaks: list[int], level: float, floor: float):
+    """Half-widths from the Jacobian; also the ones at the noise floor, and rho."""
+    from scipy.stats import t as student_t
+
+    n, p = jac.shape
+    dof = max(n - p, 1)
+    s2 = float(resid @ resid) / dof
+    # Lag-1 autocorrelation inside each set (not across set boundaries).
+    num = den = 0.0
+    for lo, hi in zip(breaks[:-1], breaks[1:]):
+        e = resid[lo:hi] - resid[lo:hi].mean()
+        num += float(e[1:] @ e[:-1])
+        den += float(e @ e)
+    rho = num / den if den > 0 else 0.0
+    inflate = (1 + rho) / (1 - rho) if 0 < rho < 1 else 1.0
+    n_eff = max(n / inflate, p + 1.0)
+    q = float(student_t.ppf(0.5 + level / 2, max(n_eff - p, 1)))
+    # Columns scaled to unit norm: the raw J^T J spans ~20 decades and a plain
+    # inverse loses the weakly determined directions.
+    norm = np.linalg.norm(jac, axis=0)
+    norm = np.where(norm > 0, norm, 1.0)
+    js = jac / norm
+    inv = np.linalg.pinv(js.T @ js, rcond=1e-12, hermitian=True)
+    var = np.clip(np.diag(inv), 0, None) / norm**2
+    ci = q * np.sqrt(s2 * inflate * var)
+    ci_floor = q * np.sqrt(max(s2, floor**2) * inflate * var)
+    return ci, ci_floor, rho
+
+
+def stored_form(x: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rate-form vectors (..., 20) as they come back from a parameter file.
+
+    The file holds the paper form (b fixed) to 6 significant digits
+    (`isp_twin.model.parameters.save_parameters`); this applies the same rounding.
+    """
+    x = np.asarray(x, dtype=float).reshape(*np.shape(x)[:-1], 4, 5)
+    paper = x.copy()
+    paper[..., 1:4] = x[..., 1:4] / DEG / b[:, None]
+    paper[..., 4] = x[..., 4] * DEG
+    rounded = np.vectorize(lambda v: float(f"{v:.6g}"))(paper)
+    out = rounded.copy()
+    out[..., 1:4] = rounded[..., 1:4] * DEG * b[:, None]
+    out[..., 4] = rounded[..., 4] / DEG
+    return out.reshape(*np.shape(x)[:-2], 20)
+
+
+def _robust_to_storage(x: np.ndarray, cost, free: np.ndarray, b: np.ndarray, step: float = 1e-4):
+    """A point whose stored (rounded) form keeps the fit; (x, moved?).
+
+    Stick/slip makes the cost jump where a static level equals a drive the
+    data hold for long (a torque step that only just breaks away): the
+    optimum can sit on that cliff, and rounding the file's values then
+    throws it off. If the stored form is more than 1 % worse, each free
+    quantity is moved by ±`step` (relative) and the best stored candidate
+    is taken (one batched simulation).
+    """
+    b = np.asarray(b, dtype=float)
+
+    def cost_of(points_free: np.ndarray) -> np.ndarray:
+        return np.atleast_1d(cost(points_free))
+
+    stored = stored_form(_embed(x, free), b)
+    exact = float(cost_of(x[None])[0])
+    rounded = float(cost_of(stored[None][:, free])[0])
+    if rounded <= 1.01 * exact + 1e-15:
+        return stored[free], False
+    deltas = np.vstack([np.diag(step * np.abs(x)), -np.diag(step * np.abs(x))])
+    cands = stored_form(np.array([_embed(x + dlt, free) for dlt in deltas]), b)[:, free]
+    costs = cost_of(cands)
+    best = int(np.argmin(costs))
+    if costs[best] < rounded:
+        return cands[best], True
+    return stored[free], False
+
+
+def _embed(x_free: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Free quantities into a (20,) vector (fixed ones: 1, never used after)."""
+    out = np.ones(20)
+    out[free] = x_free
+    return out
+
+
+def identify(
+    data: Sequence[MeasuredData],
+    prior: AxisParams,
+    settings: Settings = Settings(),
+    progress: Callable[[str, int, float], None] | None = None,
+) -> IdentificationResult:
+    """Identify one axis from open-loop runs (all sets in one cost, Eq. 9).
+
+    Args:
+        data: the identification runs (same sample period; command in the
+            unit the prior's Ke refers to).
+        prior: prior parameters: b of every regime, the values kept for
+            regimes the data do not visit, and the extra effects (held fixed:
+            the fit is of Eq. 6 with them, as the twin runs it).
+        settings: search budget, seed, regime rules.
+        progress: called as ``progress(stage, step, best_cost_rad_s)`` with
+            stage "search" (per generation) or "refine" (per evaluation,
+            step = simulated parameter sets so far).
+
+    Raises:
+        DataError: no data, mixed sample periods, or no regime visited.
+    """
+    from scipy.optimize import differential_evolution, least_squares
+
+    start = time.perf_counter()
+    if not data:
+        raise DataError("no identification data given")
+    dts = {round(d.dt, 12) for d in data}
+    if len(dts) > 1:
+        raise DataError(f"identification sets differ in sample period: {sorted(dts)} s")
+    s = settings
+    prior_rate = prior.rate_params()
+    effects = tuple(prior.effects)
+    visits = regime_visits(data, s.side_source, s.rest_rate_deg_s)
+    visited = visits >= s.min_regime_samples
+    if not visited.any():
+        raise DataError(
+            f"no regime has {s.min_regime_samples} moving samples (visits R+,R-,L+,L-: "
+            f"{', '.join(map(str, visits))}); nothing to identify"
+        )
+    free = np.repeat(visited, 5)
+    x_init = equation_error_estimate(
+        data, prior_rate, s.side_source, s.rest_rate_deg_s, s.min_regime_samples, effects
+    )
+    base = prior_rate.to_vector()
+    base[free] = x_init.to_vector()[free]
+    x0 = base[free]
+    evaluations = 0
+
+    def full(xf: np.ndarray) -> RateParams:
+        xf = np.atleast_2d(xf)
+        out = np.tile(base, (xf.shape[0], 1))
+        out[:, free] = xf
+        return RateParams.from_vector(out)
+
+    timing = Timing()
+
+    def batch_cost(xt: np.ndarray) -> np.ndarray:  # DE: xt shape (n_free, S)
+        nonlocal evaluations
+        evaluations += xt.shape[1]
+        return np.atleast_1d(
+            rmse(full(xt.T), data, s.side_source, s.rest_rate_deg_s, effects, timing, s.integration)
+        )
+
+    initial_cost = float(batch_cost(x0[:, None])[0])
+    history: list[float] = [initial_cost]
+    rest = s.rest_rate_deg_s
+    noise = rate_noise(data)
+    target = s.converged_ratio * noise
+    n_free = int(free.sum())
+    u_peak = max(float(np.max(np.abs(d.u))) for d in data)
+    speed = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
+    z_lo, z_hi = _z_limits(x0, u_peak, max(speed, 1e-9))
+
+    def z_cost(zs: np.ndarray) -> np.ndarray:  # zs (S, n_free)
+        return batch_cost(_from_z(np.clip(zs, z_lo, z_hi)).T)
+
+    cache: dict[str, np.ndarray] = {}
+
+    def evaluate(z: np.ndarray, jacobian: bool) -> None:
+        """The residual at z, and with `jacobian` its forward differences.
+
+        The columns are simulated only when asked for: least squares needs
+        none at a trial point it then rejects (each column costs one set).
+        """
+        nonlocal evaluations
+        h = np.full(z.size, 1e-6)
+        if "z" not in cache or not np.array_equal(cache["z"], z):
+            pts = np.vstack([z, z + np.diag(h)]) if jacobian else z[None]
+            evaluations += pts.shape[0]
+            e = residuals(
+                full(_from_z(pts)), data, s.side_source, rest, effects, timing, s.integration
+            )
+            cache.clear()
+            cache.update(z=z.copy(), e=e[0])
+            if jacobian:
+                cache["j"] = ((e[1:] - e[0]) / h[:, None]).T
+            if progress is not None:
+                progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
+        elif jacobian and "j" not in cache:
+            pts = z + np.diag(h)
+            evaluations += pts.shape[0]
+            e = residuals(
+                full(_from_z(pts)), data, s.side_source, rest, effects, timing, s.integration
+            )
+            cache["j"] = ((e - cache["e"]) / h[:, None]).T
+
+    def resid(z: np.ndarray) -> np.ndarray:
+        evaluate(z, jacobian=False)
+        return cache["e"]
+
+    def jac(z: np.ndarray) -> np.ndarray:
+        evaluate(z, jacobian=True)
+        return cache["j"]
+
+    def refine(z: np.ndarray, budget: int) -> tuple[np.ndarray, float, str]:
+        ls = least_squares(
+            resid,
+            np.clip(z, z_lo, z_hi),
+            jac=jac,
+            bounds=(z_lo, z_hi),
+            x_scale="jac",
+            max_nfev=budget,
+            method="trf",
+        )
+        return ls.x, float(np.sqrt(2 * ls.cost / ls.fun.size)), ls.message.rstrip(".")
+
+    def keep_better(
+        z: np.ndarray, cost: float, label: str, record: bool = False, budget: int = 0
+    ) -> None:
+        """Refine from z (when refinement is on); keep the result if it beats the best.
+
+        The best cost goes to the history after a refinement, or when `record`.
+        """
+        nonlocal z_best, best_cost
+        refined = s.refine and s.refine_evaluations > 0
+        if refined:
+            z, cost, msg = refine(z, budget or s.refine_evaluations)
+            status_parts.append(f"least squares from {label} ({msg})")
+        if cost < best_cost:
+            z_best, best_cost = z, cost
+        if refined or record:
+            history.append(best_cost)
+
+    starts = [_to_z(x0)]
+    if s.prior_in_search:
+        starts.append(_to_z(prior_rate.to_vector()[free]))
+    choose_timing = s.timing is None and s.side_source == "measured"
+
+    def best_timing(z: np.ndarray, options=TIMINGS) -> tuple[Timing, float]:
+        """The read-out timing of `options` with the lowest cost at z, and that cost."""
+        nonlocal timing
+        costs = {}
+        for candidate in options:
+            timing = candidate
+            costs[candidate] = float(z_cost(z[None])[0])
+        timing = min(costs, key=costs.get)
+        return timing, costs[timing]
+
+    status_parts: list[str] = []
+    if not choose_timing:
+        if s.timing is not None:
+            timing = s.timing
+        start_costs = z_cost(np.array(starts))
+        z_best, best_cost = starts[int(np.argmin(start_costs))], float(np.min(start_costs))
+        keep_better(z_best, best_cost, "the data's start")
+    else:
+        # What a sample means in time (`Timing`). The equation-error start
+        # reads the gyro as a point value, so at the start that reading looks
+        # best even where the gyro averages, and fitted at the wrong read-out
+        # a fast axis settles in another basin: both gyro readings are refined
+        # from the start (half-plane read at the step's start, a third of the
+        # budget each), the better fit is kept; the half-plane shift is
+        # chosen at the fitted point (at the start it only follows the noise
+        # of a poor fit).
+        z_best, best_cost = starts[0], np.inf
+        for average in (False, True):
+            options = (Timing(0.0, average),)
+            picks = [best_timing(z, options) for z in starts]
+            i = int(np.argmin([c for _, c in picks]))
+            timing = picks[i][0]
+            cache.clear()
+            keep_better(
+                starts[i],
+                picks[i][1],
+                f"the data's start, {timing.describe()}",
+                budget=max(1, s.refine_evaluations // 3),
+            )
+        # Chosen again at the fitted point and refined with the full budget.
+        cache.clear()
+        timing, cost_at = best_timing(z_best)
+        status_parts.append(timing.describe())
+        best_cost = cost_at
+        keep_better(z_best, best_cost, "the best point at that timing", record=True)
+    if s.generations > 0 and best_cost > target:
+        # Not at the noise: a global search in a box around the best point
+        # (spans of the log-parameters below), then least squares again.
+        span = np.tile(_Z_SPAN, n_free // 5)
+        lo = np.maximum(z_best - span, z_lo)
+        hi = np.minimum(z_best + span, z_hi)
+        rng = np.random.default_rng(s.seed)
+        init = lo + (hi - lo) * rng.random((s.population, n_free))
+        init[0] = np.clip(z_best, lo, hi)
+        for i, z in enumerate(starts[: s.population - 1]):
+            init[i + 1] = np.clip(z, lo, hi)
+
+        def on_generation(intermediate_result):
+            history.append(float(intermediate_result.fun))
+            if progress is not None:
+                progress("search", len(history), history[-1])
+
+        de = differential_evolution(
+            lambda zt: z_cost(zt.T),
+            list(zip(lo, hi)),
+            maxiter=s.generations,
+            init=init,
+            seed=s.seed,
+            vectorized=True,
+            updating="deferred",
+            polish=False,
+            tol=0.0,
+            callback=on_generation,
+        )
+        status_parts.append(f"differential evolution ({s.generations} generations)")
+        keep_better(de.x, float(de.fun), "its best", record=True)
+    status = "; ".join(status_parts) or "equation-error estimate"
+    x_best = _from_z(np.clip(z_best, z_lo, z_hi)[None])[0]
+
+    def _x_jacobian(xf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        h = 1e-6 * np.maximum(np.abs(xf), 1e-9)
+        pts = np.vstack([xf, xf + np.diag(h)])
+        e = residuals(full(pts), data, s.side_source, rest, effects, timing, s.integration)
+        return e[0], ((e[1:] - e[0]) / h[:, None]).T
+
+    b = np.array([r.b for r in prior.regimes])
+    x_best, moved = _robust_to_storage(
+        x_best,
+        lambda xs: rmse(full(xs), data, s.side_source, rest, effects, timing, s.integration),
+        free,
+        b,
+    )
+    if moved:
+        status += (
+            "; moved off a stick/slip threshold so that the stored 6-digit values reproduce the fit"
+        )
+    e, j = _x_jacobian(x_best)
+    breaks = list(np.cumsum([0] + [len(d) - 1 for d in data]))
+    scale = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
+    ci_f, ci_floor_f, rho = _confidence(j, e, breaks, s.confidence, _REFERENCE_NOISE * scale)
+    rate = full(x_best)
+    rate = RateParams.from_vector(rate.to_vector()[0])
+    ci = np.full(20, np.nan)
+    ident = np.zeros(20, dtype=bool)
+    sensitive = np.linalg.norm(j, axis=0) > 0
+    ident[free] = sensitive & (ci_floor_f < _MAX_RELATIVE_CI * np.abs(x_best))
+    ci[free] = np.where(ident[free], ci_f, np.nan)
+    rmse_train = {
+        d.name: float(rmse(rate, [d], s.side_source, rest, effects, timing, s.integration))
+        for d in data
+    }
+    return IdentificationResult(
+        rate=rate,
+        ci95=ci,
+        identifiable=ident,
+        visits=visits,
+        regime_identified=tuple(bool(v) for v in visited),
+        rmse_train=rmse_train,
+        cost=float(np.sqrt(np.mean(e**2))),
+        history=tuple(history),
+        initial_cost=initial_cost,
+        rho=float(rho),
+        evaluations=evaluations,
+        wall_time_s=time.perf_counter() - start,
+        status=status,
+        settings=s,
+        effects=effects,
+        timing=timing,
+        noise=noise,
+        integration=s.integration,
+    )
+
+
+def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = "") -> AxisParams:
+    """The paper form (Table 2) of a result, b fixed to the prior's b.
+
+    Ke = b·Ke / b etc.; the half-widths scale the same way (b carries no
+    uncertainty: it is fixed). Regimes not identified keep the prior values;
+    the prior's effects are kept (they were part of the fitted model). The
+    model and read-out timing of the fit are recorded (`fitted_with`).
+    """
+    b = tuple(r.b for r in prior.regimes)
+    regimes = list(result.rate.to_regimes(b))
+    ci_rate = RateParams.from_vector(result.ci95)
+    ci_regimes: list[RegimeParams | None] = []
+    for r in range(4):
+        if not result.regime_identified[r]:
+            regimes[r] = prior.regimes[r]
+            ci_regimes.append(None)
+            continue
+        ci_regimes.append(
+            RegimeParams(
+                a=float(ci_rate.pole[r]),
+                b=float("nan"),
+                Ke=float(ci_rate.gain[r] / DEG / b[r]),
+                Ts=float(ci_rate.static[r] / DEG / b[r]),
+                Tc=float(ci_rate.coulomb[r] / DEG / b[r]),
+                alpha=float(ci_rate.alpha[r] * DEG),
+            )
+        )
+    return replace(
+        prior,
+        regimes=tuple(regimes),
+        ci95=tuple(ci_regimes),
+        identified=result.regime_identified,
+        note=note or prior.note,
+        fitted_with=fitted_with(result.integration, result.timing),
+    )
+
+
+def rate_labels() -> list[str]:
+    """Labels of the (20,) vector entries, e.g. ``R+.gain``."""
+    return [f"{r}.{f}" for r in REGIMES for f in RATE_FIELDS]

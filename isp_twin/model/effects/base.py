@@ -1,0 +1,60 @@
+"""The effect interface: what an effect may hook into, and its parameter check.
+
+Every effect module subclasses `Effect`; the package (`isp_twin.model.effects`)
+collects them into the registry `EFFECTS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import ClassVar
+
+from isp_twin.errors import ParameterError, nearest
+
+__all__ = ["Effect"]
+
+
+class Effect:
+    """Base class: no effect. Subclasses set `name`, `param_names` and override hooks."""
+
+    name: ClassVar[str] = "none"
+    param_names: ClassVar[tuple[str, ...]] = ()
+    #: False where `acceleration` depends on the angle alone (no rate, no
+    #: state): the sub-stepped model then evaluates it before the run
+    #: instead of once per sample (`isp_twin.model.substep_model`).
+    acceleration_uses_rate: ClassVar[bool] = True
+
+    def __init__(self, params: Mapping[str, float], dt: float = 1e-3):
+        self.check_params(params)
+        self.params = {k: float(params[k]) for k in self.param_names}
+        self.dt = dt
+        self.reset()
+
+    @classmethod
+    def check_params(cls, params: Mapping[str, object]) -> None:
+        """Check that `params` names exactly `param_names`.
+
+        Raises:
+            ParameterError: a missing or unknown parameter (the first one,
+                with the nearest name and the expected ones).
+        """
+        missing = [p for p in cls.param_names if p not in params]
+        unknown = [p for p in params if p not in cls.param_names]
+        if missing or unknown:
+            bad = (missing or unknown)[0]
+            raise ParameterError(
+                f"effect '{cls.name}': {'missing' if missing else 'unknown'} parameter "
+                f"'{bad}'{nearest(bad, cls.param_names)}; expects {', '.join(cls.param_names)}"
+            )
+
+    def reset(self) -> None:
+        """Clear internal state (delay lines, filter states)."""
+
+    def command(self, u: float) -> float:
+        return u
+
+    def acceleration(self, angle: float, rate: float) -> float:
+        return 0.0
+
+    def measure(self, rate: float) -> float:
+        return rate

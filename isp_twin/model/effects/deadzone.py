@@ -1,0 +1,31 @@
+"""An amplifier dead zone: small commands produce no torque."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from isp_twin.model.effects.base import Effect
+
+
+class Deadzone(Effect):
+    """``u_amp = sign(u) * max(|u| - width_digits, 0)`` (symmetric dead band).
+
+    Parameters: ``width_digits`` [digits], >= 0.
+    """
+
+    name = "deadzone"
+    param_names = ("width_digits",)
+    #: Parameters that make the effect do nothing.
+    null: ClassVar[dict[str, float]] = {"width_digits": 0.0}
+    bounds: ClassVar[dict[str, tuple[float, float]]] = {"width_digits": (0.0, 5000.0)}
+
+    def command(self, u):
+        return np.sign(u) * np.maximum(np.abs(u) - self.params["width_digits"], 0.0)
+
+    @classmethod
+    def guesses(cls, ctx) -> list[dict[str, float]]:
+        """A grid of widths, 0.5 % to 40 % of the largest command (geometric)."""
+        top = float(np.max(np.abs(ctx.u))) or 1.0
+        return [{"width_digits": f * top} for f in np.geomspace(0.005, 0.4, 40)]
