@@ -155,41 +155,75 @@ def fit_candidates(
         name -> `CandidateFit`.
     """
     x_rate = np.asarray(rate_vector, float)
-    lo_r, hi_r, sc_r = rate_bounds(x_rate)
     fixed = tuple(fixed)
     starts = dict(starts or {})
     classes = {n: effect_class(n, "candidate effect") for n in names if n != BASELINE}
     need = [n for n in classes if starts.get(n) is None]
     if need:
-        if context is None:
-            resp = predict(stack, x_rate[None], (), fixed)
-            one = type(resp)(
-                *(
-                    None if a is None else a[0]
-                    for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
-                )
-            )
-            context = residual_context(stack, one, RATE_LAYOUT.column(x_rate, "pole"))
-        # Global step: every guess of every candidate in one batch.
-        guesses = {}
-        for n in need:
-            cls = classes[n]
-            gs = cls.guesses(context)
-            for g in gs:
-                for p in cls.param_names:
-                    g[p] = float(np.clip(g[p], *cls.bounds[p]))
-            guesses[n] = gs
-        reqs = [
-            (
-                np.tile(x_rate, (len(guesses[n]), 1)),
-                n,
-                {p: np.array([g[p] for g in guesses[n]]) for p in classes[n].param_names},
-            )
-            for n in need
-        ]
-        for n, res in zip(need, residuals_many(stack, reqs, fixed)):
-            starts[n] = guesses[n][int(np.argmin(np.einsum("ij,ij->i", res, res)))]
+        starts.update(_guessed_starts(stack, x_rate, classes, need, fixed, context))
+    layouts, problems, scales = _problems(names, classes, starts, x_rate, rate_starts, max_iter)
 
+    def evaluate(reqs):
+        batch = []
+        for i, x in reqs:
+            n, vec, frozen, start = layouts[i]
+            rate, eff = vec.split(x)
+            if n == BASELINE:
+                batch.append((rate, None, {}))
+                continue
+            eff.update({p: np.full(x.shape[0], start[p]) for p in frozen})
+            batch.append((rate, n, eff))
+        return residuals_many(stack, batch, fixed)
+
+    fits = solve_many(problems, evaluate)
+    if polish:
+        fits = _polish_effects(stack, layouts, fits, scales, max_iter, fixed)
+    return {
+        layout[0]: _named_result(layout, fit, classes, stack, fixed)
+        for layout, fit in zip(layouts, fits)
+    }
+
+
+def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> dict[str, dict]:
+    """The global step: every guess of every candidate in `need` simulated in
+    one batch at the current rate parameters; each candidate's best guess."""
+    if context is None:
+        resp = predict(stack, x_rate[None], (), fixed)
+        one = type(resp)(
+            *(
+                None if a is None else a[0]
+                for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
+            )
+        )
+        context = residual_context(stack, one, RATE_LAYOUT.column(x_rate, "pole"))
+    guesses = {}
+    for n in need:
+        cls = classes[n]
+        gs = cls.guesses(context)
+        for g in gs:
+            for p in cls.param_names:
+                g[p] = float(np.clip(g[p], *cls.bounds[p]))
+        guesses[n] = gs
+    reqs = [
+        (
+            np.tile(x_rate, (len(guesses[n]), 1)),
+            n,
+            {p: np.array([g[p] for g in guesses[n]]) for p in classes[n].param_names},
+        )
+        for n in need
+    ]
+    return {
+        n: guesses[n][int(np.argmin(np.einsum("ij,ij->i", res, res)))]
+        for n, res in zip(need, residuals_many(stack, reqs, fixed))
+    }
+
+
+def _problems(names, classes, starts, x_rate, rate_starts, max_iter):
+    """Each candidate's vector layout, Levenberg-Marquardt problem and bounds.
+
+    Returns (layouts, problems, scales): layouts as (name, CandidateLayout,
+    frozen effect parameters, effect start); scales as (lower, upper, scale).
+    """
     layouts, problems, scales = [], [], []
     for n in names:
         if n == BASELINE:
@@ -218,42 +252,29 @@ def fit_candidates(
                 scan=RATE_LAYOUT.static_indices,
             )
         )
+    return layouts, problems, scales
 
-    def evaluate(reqs):
-        batch = []
-        for i, x in reqs:
-            n, vec, frozen, start = layouts[i]
-            rate, eff = vec.split(x)
-            if n == BASELINE:
-                batch.append((rate, None, {}))
-                continue
-            eff.update({p: np.full(x.shape[0], start[p]) for p in frozen})
-            batch.append((rate, n, eff))
-        return residuals_many(stack, batch, fixed)
 
-    fits = solve_many(problems, evaluate)
-    if polish:
-        fits = _polish_effects(stack, layouts, fits, scales, max_iter, fixed)
-    out = {}
-    for (n, vec, frozen, start), fit in zip(layouts, fits):
-        if n == BASELINE:
-            out[n] = _result(n, fit, {}, {}, vec, stack, fixed)
-            continue
-        cls = classes[n]
-        values = {p: float(v) for p, v in vec.effect_values(fit.x).items()}
-        values.update({p: float(start[p]) for p in frozen})
-        ci = {p: float(v) for p, v in vec.effect_values(fit.ci95).items()}
-        ci.update({p: float("nan") for p in frozen})
-        out[n] = _result(
-            n,
-            fit,
-            {p: values[p] for p in cls.param_names},
-            {p: ci[p] for p in cls.param_names},
-            vec,
-            stack,
-            fixed,
-        )
-    return out
+def _named_result(layout, fit: FitResult, classes, stack: RunStack, fixed) -> CandidateFit:
+    """A candidate's `CandidateFit`: effect values and intervals by name, the
+    frozen parameters at their start (no interval)."""
+    n, vec, frozen, start = layout
+    if n == BASELINE:
+        return _result(n, fit, {}, {}, vec, stack, fixed)
+    cls = classes[n]
+    values = {p: float(v) for p, v in vec.effect_values(fit.x).items()}
+    values.update({p: float(start[p]) for p in frozen})
+    ci = {p: float(v) for p, v in vec.effect_values(fit.ci95).items()}
+    ci.update({p: float("nan") for p in frozen})
+    return _result(
+        n,
+        fit,
+        {p: values[p] for p in cls.param_names},
+        {p: ci[p] for p in cls.param_names},
+        vec,
+        stack,
+        fixed,
+    )
 
 
 def _polish_effects(stack, layouts, fits, scales, max_iter, fixed) -> list[FitResult]:
