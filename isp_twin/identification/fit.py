@@ -705,28 +705,18 @@ def joint_equation_error_estimate(
     `equation_error_estimate` fits each regime alone with known effects taken
     out; here the candidate's unknown parameters join the regression, so
     they are not estimated on a base that has absorbed the effect into its
-    friction levels. One block problem: each regime's columns (rate, command,
-    Coulomb and Stribeck signs, with the regime's alpha fixed at its best of
-    the per-regime grid) on its own rows, the effect's columns shared by all
-    rows; bounded as in `equation_error_estimate` (bvls on unit-norm columns).
-
-    * torque effects linear in their strengths: cogging
-      ``T (s sin(2 pi y/P) + c cos(2 pi y/P))`` with the period P on a grid of
-      +-3 % around `candidate`'s (a residual periodogram finds it; the
-      strengths come from here), unbalance ``T (s sin y + c cos y)``, cable
-      spring ``-T k y`` (its offset is a constant torque, exactly a shift of
-      the per-direction friction levels: held at `candidate`'s);
-    * command effects (input delay, dead zone, saturation): the command
-      column transformed by the effect on a grid of its parameter;
-    * others (no linear form): `candidate` held, base re-estimated.
+    friction levels. One block problem (`_solve_block`): each regime's
+    columns with the regime's alpha fixed at its best of the per-regime
+    grid, the effect's columns shared by all rows; torque effects linear in
+    their strengths by `_joint_torque_pass`, command effects on a grid of
+    their parameter by `_joint_command_pass`; others (no linear form):
+    `candidate` held, base re-estimated.
 
     Alphas and effect are estimated in turn `passes` times (alphas with the
     effect held, then the block problem). Returns the rate parameters, the
     candidate with the estimated parameters (others as given) and both
     equation-error costs (`JointEstimate`).
     """
-    from scipy.optimize import lsq_linear
-
     name = candidate.name
     current = EffectSpec(name, dict(candidate.params))
     fixed = tuple(effects)
@@ -735,169 +725,258 @@ def joint_equation_error_estimate(
             data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
         )
         return JointEstimate(x, current, float("nan"), float("nan"))
-    noise = rate_noise(data)
-    rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
-    dt = data[0].dt
-    rows = _regression_rows(data, side_source, rest, fixed)
-    regimes = [r for r in range(RATE_LAYOUT.n_regimes) if np.sum(rows.regime == r) >= min_samples]
-    if not regimes:
+    problem = _joint_problem(data, side_source, rest_rate_deg_s, min_samples, fixed)
+    if problem is None:
         return JointEstimate(prior, current, float("nan"), float("nan"))
-    # The command of every step after the fixed effects [digits], (sum N-1,).
-    u_all = np.concatenate(
-        [_effect_drive(d, side_angle(d, side_source)[:-1], fixed)[0] for d in data]
-    )
-    u_peak = float(np.max(np.abs(u_all))) or 1.0
     x = RATE_LAYOUT.as_table(prior.to_vector()).copy()
-
-    def torque_columns(shape: float) -> np.ndarray:
-        y = rows.y
-        if name == "cogging":
-            ph = 2.0 * np.pi * y / shape
-            return dt * np.column_stack([np.sin(ph), np.cos(ph)])
-        if name == "unbalance":
-            return dt * np.column_stack([np.sin(y), np.cos(y)])
-        return dt * (-y)[:, None]
-
-    def command_column(values: np.ndarray) -> np.ndarray:
-        """The command after the effect for each grid value, (G, sum N-1)."""
-        pname = _COMMAND_EFFECTS[name]
-        out = np.empty((values.size, u_all.size))
-        start = 0
-        for d in data:
-            n = len(d) - 1
-            eff = make_batched(name, {pname: values}, dt)
-            seg = u_all[start : start + n]
-            for k in range(n):
-                out[:, start + k] = eff.command(np.full(values.size, seg[k]))
-            start += n
-        return out
-
-    use = np.isin(rows.regime, regimes)
-    in_regime = [rows.regime[use] == r for r in regimes]
-    n_r = len(regimes)
-
-    def block(alpha: np.ndarray, w1: np.ndarray):
-        """The block problem at these alphas: a solver of (command, effect columns).
-
-        Columns per regime: rate, -sign, -sign * Stribeck shape (fixed here,
-        their Gram matrix formed once), then the command per regime and the
-        shared effect columns (varying over the grid); the bounded problem is
-        solved on the Cholesky factor of the Gram matrix of ``[A | w1]``
-        (``||A x - w1||^2 = ||R x - q||^2 + rest^2``: ~20 rows instead of
-        ~10^4), a relative 1e-12 ridge keeping it defined for collinear
-        columns. Columns are scaled to unit norm (u in digits, the rest rad/s).
-        """
-        f_mat = np.zeros((int(use.sum()), 3 * n_r))
-        w0, sgn, speed, brk = rows.w0[use], rows.sgn[use], rows.speed[use], rows.brk[use]
-        for i, r in enumerate(regimes):
-            m = in_regime[i]
-            shape = np.where(brk[m] > 0, 1.0, np.exp(-alpha[r] * speed[m]))
-            f_mat[m, 3 * i : 3 * i + 3] = np.column_stack([w0[m], -sgn[m], -sgn[m] * shape])
-        f_norm = np.linalg.norm(f_mat, axis=0)
-        f_norm = np.where(f_norm > 0, f_norm, 1.0)
-        f_mat /= f_norm
-        target = w1[use]
-        ff, ft, tt = f_mat.T @ f_mat, f_mat.T @ target, float(target @ target)
-
-        def solve(u0: np.ndarray, extra: np.ndarray):
-            """(sse, regime coefficients (n_r, 4) as (a, gain, Tc, Ts - Tc), effect coefficients)."""
-            k_e = extra.shape[1]
-            v_mat = np.zeros((f_mat.shape[0], n_r + k_e))
-            u0 = u0[use]
-            for i in range(n_r):
-                v_mat[in_regime[i], i] = u0[in_regime[i]]
-            v_mat[:, n_r:] = extra[use]
-            v_norm = np.linalg.norm(v_mat, axis=0)
-            v_norm = np.where(v_norm > 0, v_norm, 1.0)
-            v_mat /= v_norm
-            fv, vv, vt = f_mat.T @ v_mat, v_mat.T @ v_mat, v_mat.T @ target
-            n_c = 4 * n_r + k_e
-            gram = np.empty((n_c + 1, n_c + 1))
-            nf = 3 * n_r
-            gram[:nf, :nf], gram[:nf, nf:n_c], gram[nf:n_c, nf:n_c] = ff, fv, vv
-            gram[nf:n_c, :nf] = fv.T
-            gram[:nf, n_c], gram[nf:n_c, n_c], gram[n_c, n_c] = ft, vt, tt
-            gram[n_c, :n_c] = gram[:n_c, n_c]
-            gram[np.diag_indices_from(gram)] += 1e-12 * np.trace(gram)
-            tri = np.linalg.cholesky(gram).T
-            norm = np.r_[f_norm, v_norm]
-            lo = np.r_[np.zeros(nf + n_r), np.full(k_e, -np.inf)]
-            hi = np.full(n_c, np.inf)
-            hi[0:nf:3] = 1.0 - 1e-9
-            fit = lsq_linear(
-                tri[:n_c, :n_c], tri[:n_c, n_c], bounds=(lo * norm, hi * norm), method="bvls"
-            )
-            coef = fit.x / norm
-            sse = float(np.sum(fit.fun**2) + tri[n_c, n_c] ** 2)
-            fixed_c = coef[:nf].reshape(n_r, 3)
-            reg = np.column_stack(
-                [fixed_c[:, 0], coef[nf : nf + n_r], fixed_c[:, 1], fixed_c[:, 2]]
-            )
-            return sse, reg, coef[nf + n_r :]
-
-        return solve
-
-    cls = make_effect(current, dt).__class__
+    cls = make_effect(current, problem.dt).__class__
     for _ in range(max(passes, 1)):
         # Alphas (and a first base) with the current effect held.
         base = equation_error_estimate(
             data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
         )
         alpha = RATE_LAYOUT.column(base.to_vector(), "alpha")
-        params = dict(current.params)
-        best = None
         if name in _LINEAR_TORQUES:
-            w1 = rows.w1.copy()
-            if name == "cable_spring":
-                w1 = w1 - dt * params["offset_rad_s2"]
-            u0 = u_all[rows.step]
-            if name == "cogging":
-                p0 = params["period_rad"]
-                shapes = p0 * (1.0 + np.linspace(-0.03, 0.03, 61))
-            else:
-                shapes = np.array([0.0])
-            solve = block(alpha, w1)
-            for shape in shapes:
-                sse, reg, eff = solve(u0, torque_columns(shape))
-                if best is None or sse < best[0]:
-                    best = (sse, reg, eff, shape)
-            _, reg, eff, shape = best
-            if name == "cogging":
-                amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
-                params.update(amplitude_rad_s2=amp, period_rad=float(shape), phase_rad=ph)
-            elif name == "unbalance":
-                amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
-                params.update(amplitude_rad_s2=amp, phase_rad=ph)
-            else:
-                params.update(stiffness_1_s2=float(eff[0]))
+            sse, reg, params = _joint_torque_pass(problem, name, alpha, current.params)
         else:
-            pname = _COMMAND_EFFECTS[name]
-            if name == "input_delay":
-                grid = np.arange(0.0, 40.5, 0.5) * dt
-            elif name == "deadzone":
-                grid = np.linspace(0.0, 0.4, 81) * u_peak
-            else:
-                grid = np.linspace(0.3, 1.0, 71) * u_peak
-            grid = np.union1d(grid, [params[pname]])
-            lo_b, hi_b = cls.bounds[pname]
-            grid = grid[(grid >= lo_b) & (grid <= hi_b)]
-            columns = command_column(grid)
-            solve = block(alpha, rows.w1)
-            for value, u_col in zip(grid, columns):
-                sse, reg, eff = solve(u_col[rows.step], np.zeros((rows.w0.size, 0)))
-                if best is None or sse < best[0]:
-                    best = (sse, reg, eff, value)
-            _, reg, eff, value = best
-            params[pname] = float(value)
-        for i, r in enumerate(regimes):
+            sse, reg, params = _joint_command_pass(problem, data, name, alpha, current.params, cls)
+        for i, r in enumerate(problem.regimes):
             a, g, c, s_minus_c = reg[i]
             a = min(max(a, 1e-6), 1.0 - 1e-9)
             x[r] = (a, max(g, 1e-12), c + s_minus_c + 1e-12, c + 1e-12, alpha[r])
         bounded = {p: float(np.clip(v, *cls.bounds[p])) for p, v in params.items()}
         current = EffectSpec(name, bounded)
-        sse = best[0]
-    sse_base = block(alpha, rows.w1)(u_all[rows.step], np.zeros((rows.w0.size, 0)))[0]
+    sse_base = _base_only_sse(problem, alpha)
     return JointEstimate(RateParams.from_vector(RATE_LAYOUT.from_table(x)), current, sse, sse_base)
+
+
+@dataclass(frozen=True)
+class _JointProblem:
+    """The regression rows of `joint_equation_error_estimate` and what every pass reuses.
+
+    Attributes:
+        rows: the usable samples (`_Rows`), K rows.
+        regimes: the regimes with enough rows, in regime order.
+        u_all: the command of every step after the fixed effects [digits], (sum N-1,).
+        u_peak: its largest magnitude (1 if all zero) [digits].
+        dt: sample period [s].
+        use: rows in those regimes, (K,).
+        in_regime: per regime of `regimes`, its rows among the used ones.
+    """
+
+    rows: _Rows
+    regimes: list[int]
+    u_all: np.ndarray
+    u_peak: float
+    dt: float
+    use: np.ndarray
+    in_regime: list[np.ndarray]
+
+
+def _joint_problem(data, side_source, rest_rate_deg_s, min_samples, fixed) -> _JointProblem | None:
+    """The rows with the fixed effects taken out; None when no regime has `min_samples`."""
+    noise = rate_noise(data)
+    rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
+    rows = _regression_rows(data, side_source, rest, fixed)
+    regimes = [r for r in range(RATE_LAYOUT.n_regimes) if np.sum(rows.regime == r) >= min_samples]
+    if not regimes:
+        return None
+    u_all = np.concatenate(
+        [_effect_drive(d, side_angle(d, side_source)[:-1], fixed)[0] for d in data]
+    )
+    u_peak = float(np.max(np.abs(u_all))) or 1.0
+    use = np.isin(rows.regime, regimes)
+    in_regime = [rows.regime[use] == r for r in regimes]
+    return _JointProblem(rows, regimes, u_all, u_peak, data[0].dt, use, in_regime)
+
+
+def _base_only_sse(problem: _JointProblem, alpha: np.ndarray) -> float:
+    """The block problem's sse without the effect (same rows and alphas) [(rad/s)^2]."""
+    rows = problem.rows
+    cols = _fixed_columns(problem, alpha, rows.w1)
+    return _solve_block(problem, cols, problem.u_all[rows.step], np.zeros((rows.w0.size, 0)))[0]
+
+
+def _torque_columns(name: str, y: np.ndarray, shape: float, dt: float) -> np.ndarray:
+    """A torque effect's columns per unit strength at angles `y` [rad], (K, 1 or 2).
+
+    Cogging ``(sin, cos)(2 pi y / shape)``, unbalance ``(sin, cos)(y)``, cable
+    spring ``-y``; times the sample period (rate change per step).
+    """
+    if name == "cogging":
+        ph = 2.0 * np.pi * y / shape
+        return dt * np.column_stack([np.sin(ph), np.cos(ph)])
+    if name == "unbalance":
+        return dt * np.column_stack([np.sin(y), np.cos(y)])
+    return dt * (-y)[:, None]
+
+
+def _command_columns(name: str, data, u_all: np.ndarray, values: np.ndarray, dt: float):
+    """The command after a command effect for each grid value, (G, sum N-1)."""
+    pname = _COMMAND_EFFECTS[name]
+    out = np.empty((values.size, u_all.size))
+    start = 0
+    for d in data:
+        n = len(d) - 1
+        eff = make_batched(name, {pname: values}, dt)
+        seg = u_all[start : start + n]
+        for k in range(n):
+            out[:, start + k] = eff.command(np.full(values.size, seg[k]))
+        start += n
+    return out
+
+
+@dataclass(frozen=True)
+class _FixedColumns:
+    """The block problem's columns fixed by the alphas (`_fixed_columns`).
+
+    Attributes:
+        f_mat: per regime rate, -sign, -sign * Stribeck shape, unit-norm, (K_used, 3 n_r).
+        f_norm: their norms before scaling, (3 n_r,).
+        target: the rate after the step on the used rows [rad/s], (K_used,).
+        ff, ft, tt: Gram blocks ``F^T F``, ``F^T target``, ``target^T target``.
+    """
+
+    f_mat: np.ndarray
+    f_norm: np.ndarray
+    target: np.ndarray
+    ff: np.ndarray
+    ft: np.ndarray
+    tt: float
+
+
+def _fixed_columns(problem: _JointProblem, alpha: np.ndarray, w1: np.ndarray) -> _FixedColumns:
+    """The columns that do not vary over an effect's grid, their Gram matrix formed once.
+
+    Columns are scaled to unit norm (u in digits, the rest rad/s).
+    """
+    rows, use, regimes = problem.rows, problem.use, problem.regimes
+    f_mat = np.zeros((int(use.sum()), 3 * len(regimes)))
+    w0, sgn, speed, brk = rows.w0[use], rows.sgn[use], rows.speed[use], rows.brk[use]
+    for i, r in enumerate(regimes):
+        m = problem.in_regime[i]
+        shape = np.where(brk[m] > 0, 1.0, np.exp(-alpha[r] * speed[m]))
+        f_mat[m, 3 * i : 3 * i + 3] = np.column_stack([w0[m], -sgn[m], -sgn[m] * shape])
+    f_norm = np.linalg.norm(f_mat, axis=0)
+    f_norm = np.where(f_norm > 0, f_norm, 1.0)
+    f_mat /= f_norm
+    target = w1[use]
+    return _FixedColumns(
+        f_mat, f_norm, target, f_mat.T @ f_mat, f_mat.T @ target, float(target @ target)
+    )
+
+
+def _solve_block(problem: _JointProblem, cols: _FixedColumns, u0: np.ndarray, extra: np.ndarray):
+    """The bounded block problem with command `u0` (K,) and effect columns `extra` (K, k_e).
+
+    Solved on the Cholesky factor of the Gram matrix of ``[A | w1]``
+    (``||A x - w1||^2 = ||R x - q||^2 + rest^2``: ~20 rows instead of ~10^4),
+    a relative 1e-12 ridge keeping it defined for collinear columns; bounds
+    as in `equation_error_estimate` (bvls on unit-norm columns). Returns
+    (sse, regime coefficients (n_r, 4) as (a, gain, Tc, Ts - Tc), effect
+    coefficients (k_e,)).
+    """
+    from scipy.optimize import lsq_linear
+
+    use, in_regime, n_r = problem.use, problem.in_regime, len(problem.regimes)
+    f_mat, f_norm = cols.f_mat, cols.f_norm
+    k_e = extra.shape[1]
+    v_mat = np.zeros((f_mat.shape[0], n_r + k_e))
+    u0 = u0[use]
+    for i in range(n_r):
+        v_mat[in_regime[i], i] = u0[in_regime[i]]
+    v_mat[:, n_r:] = extra[use]
+    v_norm = np.linalg.norm(v_mat, axis=0)
+    v_norm = np.where(v_norm > 0, v_norm, 1.0)
+    v_mat /= v_norm
+    fv, vv, vt = f_mat.T @ v_mat, v_mat.T @ v_mat, v_mat.T @ cols.target
+    n_c = 4 * n_r + k_e
+    gram = np.empty((n_c + 1, n_c + 1))
+    nf = 3 * n_r
+    gram[:nf, :nf], gram[:nf, nf:n_c], gram[nf:n_c, nf:n_c] = cols.ff, fv, vv
+    gram[nf:n_c, :nf] = fv.T
+    gram[:nf, n_c], gram[nf:n_c, n_c], gram[n_c, n_c] = cols.ft, vt, cols.tt
+    gram[n_c, :n_c] = gram[:n_c, n_c]
+    gram[np.diag_indices_from(gram)] += 1e-12 * np.trace(gram)
+    tri = np.linalg.cholesky(gram).T
+    norm = np.r_[f_norm, v_norm]
+    lo = np.r_[np.zeros(nf + n_r), np.full(k_e, -np.inf)]
+    hi = np.full(n_c, np.inf)
+    hi[0:nf:3] = 1.0 - 1e-9
+    fit = lsq_linear(tri[:n_c, :n_c], tri[:n_c, n_c], bounds=(lo * norm, hi * norm), method="bvls")
+    coef = fit.x / norm
+    sse = float(np.sum(fit.fun**2) + tri[n_c, n_c] ** 2)
+    fixed_c = coef[:nf].reshape(n_r, 3)
+    reg = np.column_stack([fixed_c[:, 0], coef[nf : nf + n_r], fixed_c[:, 1], fixed_c[:, 2]])
+    return sse, reg, coef[nf + n_r :]
+
+
+def _joint_torque_pass(
+    problem: _JointProblem, name: str, alpha: np.ndarray, params: dict[str, float]
+) -> tuple[float, np.ndarray, dict[str, float]]:
+    """One block solve of a torque effect linear in its strengths; (sse, regimes, params).
+
+    Cogging ``T (s sin(2 pi y/P) + c cos(2 pi y/P))`` with the period P on a
+    grid of +-3 % around the given one (a residual periodogram finds it; the
+    strengths come from here), unbalance ``T (s sin y + c cos y)``, cable
+    spring ``-T k y`` (its offset is a constant torque, exactly a shift of
+    the per-direction friction levels: held at the given value).
+    """
+    rows, dt, params = problem.rows, problem.dt, dict(params)
+    w1 = rows.w1.copy()
+    if name == "cable_spring":
+        w1 = w1 - dt * params["offset_rad_s2"]
+    u0 = problem.u_all[rows.step]
+    if name == "cogging":
+        shapes = params["period_rad"] * (1.0 + np.linspace(-0.03, 0.03, 61))
+    else:
+        shapes = np.array([0.0])
+    cols = _fixed_columns(problem, alpha, w1)
+    best = None
+    for shape in shapes:
+        sse, reg, eff = _solve_block(problem, cols, u0, _torque_columns(name, rows.y, shape, dt))
+        if best is None or sse < best[0]:
+            best = (sse, reg, eff, shape)
+    sse, reg, eff, shape = best
+    if name == "cogging":
+        amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
+        params.update(amplitude_rad_s2=amp, period_rad=float(shape), phase_rad=ph)
+    elif name == "unbalance":
+        amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
+        params.update(amplitude_rad_s2=amp, phase_rad=ph)
+    else:
+        params.update(stiffness_1_s2=float(eff[0]))
+    return sse, reg, params
+
+
+def _joint_command_pass(
+    problem: _JointProblem, data, name: str, alpha: np.ndarray, params, cls
+) -> tuple[float, np.ndarray, dict[str, float]]:
+    """One grid of a command effect's parameter (delay, dead zone, saturation); (sse, regimes, params).
+
+    The command column is transformed by the effect at each grid value
+    (within the effect class `cls`'s bounds, the given value included).
+    """
+    pname = _COMMAND_EFFECTS[name]
+    dt, u_peak, rows = problem.dt, problem.u_peak, problem.rows
+    if name == "input_delay":
+        grid = np.arange(0.0, 40.5, 0.5) * dt
+    elif name == "deadzone":
+        grid = np.linspace(0.0, 0.4, 81) * u_peak
+    else:
+        grid = np.linspace(0.3, 1.0, 71) * u_peak
+    grid = np.union1d(grid, [params[pname]])
+    lo_b, hi_b = cls.bounds[pname]
+    grid = grid[(grid >= lo_b) & (grid <= hi_b)]
+    columns = _command_columns(name, data, problem.u_all, grid, dt)
+    cols = _fixed_columns(problem, alpha, rows.w1)
+    best = None
+    for value, u_col in zip(grid, columns):
+        sse, reg, eff = _solve_block(problem, cols, u_col[rows.step], np.zeros((rows.w0.size, 0)))
+        if best is None or sse < best[0]:
+            best = (sse, reg, eff, value)
+    sse, reg, _, value = best
+    return sse, reg, {**params, pname: float(value)}
 
 
 def rate_noise(data: Sequence[MeasuredData]) -> float:
