@@ -381,14 +381,8 @@ LONG_FUNCTIONS = {
     # The reference simulator's integrator: one loop over samples, sub-steps
     # and events whose closures share its local state (docs/reference_simulator.md).
     "isp_twin/reference/axis.py::simulate",
-    # Identification and diagnosis: being rewritten in stages (status enum,
-    # per-iteration log) by their own issue; split there, not here.
-    "isp_twin/identification/fit.py::identify",
-    "isp_twin/identification/fit.py::equation_error_estimate",
-    # New with issue 8's joint start (base and effect in one regression): its
-    # grid, alternation and block solve become stages with the one estimation
-    # engine (issue 8 item 5), not before.
-    "isp_twin/identification/fit.py::joint_equation_error_estimate",
+    # Identification reports and diagnosis: being rewritten in stages by their
+    # own issue; split there, not here.
     "isp_twin/identification/report.py::write_report",
     "isp_twin/identification/report.py::result_json",
     "isp_twin/diagnosis/search.py::diagnose",

@@ -15,6 +15,7 @@ from isp_twin.cli import main
 from isp_twin.errors import DataError
 from isp_twin.identification.experiments import PAPER_SET, generate_set
 from isp_twin.identification.fit import (
+    IdentificationStatus,
     Settings,
     equation_error_estimate,
     fused_angle,
@@ -161,6 +162,39 @@ def test_same_seed_same_result_and_the_search_improves_the_start(paper_params, t
     assert list(a.history) == sorted(a.history, reverse=True)
 
 
+def test_the_search_log_is_the_history_with_stage_and_evaluations(noisy_results):
+    for res in noisy_results:
+        assert [step.best_cost for step in res.log] == list(res.history)
+        assert res.log[0].stage == "start" and res.log[0].best_cost == res.initial_cost
+        assert {step.stage for step in res.log[1:]} <= {"refine", "timing", "search"}
+        counts = [step.evaluations for step in res.log]
+        assert counts == sorted(counts) and 0 < counts[-1] <= res.evaluations
+        # The enum and the cost agree: at the noise exactly when within the ratio.
+        at_noise = res.cost <= res.settings.converged_ratio * res.noise
+        assert (res.outcome is IdentificationStatus.AT_NOISE) == at_noise
+
+
+@pytest.mark.parametrize(
+    "change, outcome",
+    [
+        ({"refine": False}, IdentificationStatus.NOT_AT_NOISE),
+        ({"refine_evaluations": 3}, IdentificationStatus.MAX_EVALUATIONS),
+        ({"refine_evaluations": 2000}, IdentificationStatus.CONVERGED),
+        ({"refine": False, "generations": 2, "population": 5}, IdentificationStatus.NOT_AT_NOISE),
+    ],
+)
+def test_the_outcome_says_why_a_fit_above_the_noise_ended(paper_params, truth, change, outcome):
+    # Half the noise floor: no fit reaches it (white noise leaves an RMS
+    # error of sigma * sqrt(1 - 20/N) at the truth, N ~ 1000 samples), so
+    # every run ends "above the noise" and the enum says why.
+    data = _data(paper_params, 0.02, excitations=SHORT[:1])
+    s = dataclasses.replace(FAST, converged_ratio=0.5, **change)
+    res = identify(data, _perturbed_prior(truth), s)
+    assert res.cost > s.converged_ratio * res.noise
+    assert res.outcome is outcome
+    assert ("search" in {step.stage for step in res.log}) == (s.generations > 0)
+
+
 def test_no_visited_regime_is_an_error(paper_params, truth):
     data = _data(paper_params, 0.0)
     with pytest.raises(DataError, match="no regime has 10000 moving samples"):
@@ -198,6 +232,9 @@ def test_identify_command_end_to_end(tmp_path, paper_params, truth, capsys):
     assert ps.axis("outer_az") == paper_params.axis("outer_az")
     summary = json.loads(js.read_text())
     assert set(summary) >= {"parameters", "ci95", "identifiable", "rmse_train", "rmse_validation"}
+    assert summary["outcome"] in {s.value for s in IdentificationStatus}
+    assert summary["search_log"][0]["stage"] == "start"
+    assert 0 < summary["search_log"][-1]["evaluations"] <= summary["evaluations"]
     assert summary["identifiable"]["R+"]["b"] is False and summary["ci95"]["R+"]["b"] is None
     assert list(summary["rmse_validation"]) == [data[1].name]
     assert summary["rmse_validation"][data[1].name] == pytest.approx(0.02, rel=0.2)

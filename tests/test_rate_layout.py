@@ -159,9 +159,6 @@ def test_a_candidate_vector_splits_into_rate_and_named_effect_parameters():
 #: only shrinks: an entry that no longer has any fails
 #: `test_the_layout_literal_allow_list_only_shrinks`.
 LAYOUT_LITERALS_ALLOWED = {
-    # Being rewritten (status enum, per-iteration log) by the identification
-    # issue right now; converted in one pass after that work lands.
-    "isp_twin/identification/fit.py",
     "isp_twin/diagnosis/search.py",
 }
 #: Not scanned: the independent reference simulator shares no code with the

@@ -55,6 +55,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from enum import Enum
 
 import numpy as np
 
@@ -65,7 +66,7 @@ from isp_twin.model.effects import Effect, make_effect
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.friction import regime_index
 from isp_twin.model.parameters import (
-    REGIMES,
+    RATE_LAYOUT,
     AxisParams,
     EffectSpec,
     FittedWith,
@@ -86,6 +87,8 @@ __all__ = [
     "rate_noise",
     "Settings",
     "IdentificationResult",
+    "IdentificationStatus",
+    "SearchStep",
     "fused_angle",
     "side_angle",
     "regime_visits",
@@ -101,8 +104,9 @@ __all__ = [
     "stored_form",
 ]
 
-#: Names of the five rate-form quantities per regime, `RateParams.to_vector` order.
-RATE_FIELDS: tuple[str, ...] = ("pole", "gain", "static", "coulomb", "alpha")
+#: Names of the rate-form quantities per regime, `RateParams.to_vector` order
+#: (`RATE_LAYOUT.fields`, kept under this name for callers of this module).
+RATE_FIELDS: tuple[str, ...] = RATE_LAYOUT.fields
 #: Side sources: where each step's side (R/L half-plane) is read from (the
 #: fused or raw measured angle, the wrapped angle, or a fixed side).
 SIDE_SOURCES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
@@ -214,6 +218,48 @@ class Settings:
             raise ParameterError("population >= 5 and generations >= 0 required")
 
 
+class IdentificationStatus(Enum):
+    """How an identification ended (`IdentificationResult.outcome`).
+
+    AT_NOISE: the fit is within `Settings.converged_ratio` noise floors.
+    CONVERGED: above that, the last least-squares refinement met its
+    tolerance (a local optimum the model cannot improve on: the data may
+    hold an effect the model lacks). MAX_EVALUATIONS: above that, the last
+    refinement ran out of its budget. NOT_AT_NOISE: above that, and no
+    refinement ran (refinement off: the equation-error estimate or the
+    global search's best point).
+    """
+
+    AT_NOISE = "at_noise"
+    CONVERGED = "converged"
+    MAX_EVALUATIONS = "max_evaluations"
+    NOT_AT_NOISE = "not_at_noise"
+
+
+@dataclass(frozen=True)
+class SearchStep:
+    """One entry of an identification's per-iteration log.
+
+    Attributes:
+        stage: "start" (the equation-error estimate), "refine" (after a
+            least-squares refinement), "timing" (the read-out timing chosen
+            at the best point) or "search" (a differential-evolution generation).
+        evaluations: simulated parameter sets so far.
+        best_cost: the best Eq. 9 cost so far [rad/s] (the `history` entry).
+    """
+
+    stage: str
+    evaluations: int
+    best_cost: float
+
+    def to_json(self) -> dict:
+        return {
+            "stage": self.stage,
+            "evaluations": self.evaluations,
+            "best_cost_deg_s": self.best_cost / DEG,
+        }
+
+
 @dataclass(frozen=True)
 class IdentificationResult:
     """The outcome of `identify` for one axis.
@@ -242,6 +288,8 @@ class IdentificationResult:
         noise: white rate-noise standard deviation of the data (`rate_noise`),
             the error a perfect model leaves [rad/s].
         integration: how the fitted model integrates a sample (`Integration`).
+        outcome: how the search ended (`IdentificationStatus`).
+        log: per-iteration log, one `SearchStep` per `history` entry.
     """
 
     rate: RateParams
@@ -262,6 +310,8 @@ class IdentificationResult:
     timing: Timing = Timing()
     noise: float = float("nan")
     integration: Integration = DEFAULT_INTEGRATION
+    outcome: IdentificationStatus = IdentificationStatus.NOT_AT_NOISE
+    log: tuple[SearchStep, ...] = ()
 
     @property
     def vector(self) -> np.ndarray:
@@ -323,11 +373,11 @@ def regime_visits(
     data: Sequence[MeasuredData], side_source: str = "measured", rest_rate_deg_s: float = 0.1
 ) -> np.ndarray:
     """Moving samples (|rate| above the rest level) per regime, shape (4,)."""
-    counts = np.zeros(4, dtype=int)
+    counts = np.zeros(RATE_LAYOUT.n_regimes, dtype=int)
     for d in data:
         moving = np.abs(d.omega) > rest_rate_deg_s * DEG
         r = regime_index(side_angle(d, side_source), d.omega)[moving]
-        counts += np.bincount(r, minlength=4)
+        counts += np.bincount(r, minlength=RATE_LAYOUT.n_regimes)
     return counts
 
 
@@ -464,11 +514,31 @@ def equation_error_estimate(
     four times the rate noise (`rate_noise`): noisy samples of an axis at rest
     would otherwise enter as motion.
     """
-    from scipy.optimize import lsq_linear
-
     noise = rate_noise(data)
     rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
-    rows: list[list[np.ndarray]] = [[] for _ in range(4)]
+    tables, speed = _regime_tables(data, side_source, rest, effects)
+    x = RATE_LAYOUT.as_table(prior.to_vector()).copy()
+    if speed.size == 0:
+        return RateParams.from_vector(RATE_LAYOUT.from_table(x))
+    typical = float(np.sqrt(np.mean(speed**2)))
+    grid = np.geomspace(1e-2, 1e2, 41) / typical
+    for r, table in enumerate(tables):
+        if table.shape[0] >= min_samples:
+            x[r] = _fit_regime(table, grid)
+    return RateParams.from_vector(RATE_LAYOUT.from_table(x))
+
+
+def _regime_tables(
+    data: Sequence[MeasuredData], side_source: str, rest: float, effects: Sequence[EffectSpec]
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """One-step-ahead regression rows per regime, and the moving speeds [rad/s].
+
+    Returns per regime a table (K_r, 6) of columns (rate before, command,
+    sign, speed, 1 on breakaway rows, rate after) with known `effects` taken
+    out, and the |rate| of all moving samples (K,). `rest` [rad/s] is the
+    level at or below which a sample counts as at rest.
+    """
+    rows: list[list[np.ndarray]] = [[] for _ in range(RATE_LAYOUT.n_regimes)]
     speeds = []
     for d in data:
         w0, w1 = d.omega[:-1], d.omega[1:]
@@ -482,10 +552,10 @@ def equation_error_estimate(
         r_move = regime_index(y, w0)
         r_break = regime_index(y, w1)
         speeds.append(np.abs(w0[moving]))
-        for r in range(4):
+        for r, regime_rows in enumerate(rows):
             m = moving & (r_move == r)
             b = breakaway & (r_break == r)
-            rows[r].append(
+            regime_rows.append(
                 np.column_stack(
                     [
                         np.r_[w0[m], np.zeros(b.sum())],
@@ -497,37 +567,40 @@ def equation_error_estimate(
                     ]
                 )
             )
-    x = prior.to_vector().reshape(4, 5).copy()
+    tables = [np.concatenate(t) if t else np.empty((0, 6)) for t in rows]
     speed = np.concatenate(speeds) if speeds else np.empty(0)
-    if speed.size == 0:
-        return RateParams.from_vector(x.ravel())
-    typical = float(np.sqrt(np.mean(speed**2)))
-    grid = np.geomspace(1e-2, 1e2, 41) / typical
-    for r in range(4):
-        table = np.concatenate(rows[r]) if rows[r] else np.empty((0, 6))
-        if table.shape[0] < min_samples:
-            continue
-        w0, u0, sgn, speed_r, brk, w1 = table.T
-        # Columns scaled to unit norm: u is in digits, the rest in rad/s.
-        best = None
-        for alpha in grid:
-            shape = np.where(brk > 0, 1.0, np.exp(-alpha * speed_r))
-            a_mat = np.column_stack([w0, u0, -sgn, -sgn * shape])
-            norm = np.linalg.norm(a_mat, axis=0)
-            norm = np.where(norm > 0, norm, 1.0)
-            fit = lsq_linear(
-                a_mat / norm,
-                w1,
-                bounds=(np.zeros(4), np.array([1.0 - 1e-9, np.inf, np.inf, np.inf]) * norm),
-                method="bvls",
-            )
-            sse = float(np.sum(fit.fun**2))
-            if best is None or sse < best[0]:
-                best = (sse, fit.x / norm, alpha)
-        _, (a, g, c, s_minus_c), alpha = best
-        a = min(max(a, 1e-6), 1.0 - 1e-9)
-        x[r] = (a, max(g, 1e-12), c + s_minus_c + 1e-12, c + 1e-12, alpha)
-    return RateParams.from_vector(x.ravel())
+    return tables, speed
+
+
+def _fit_regime(table: np.ndarray, grid: np.ndarray) -> tuple[float, ...]:
+    """One regime's rate form (pole, gain, static, coulomb, alpha) from its rows.
+
+    For each alpha of `grid` [s/rad] the bounded linear fit of
+    `equation_error_estimate`; the alpha of least squared error is kept.
+    `table`: the regime's rows (K, 6) from `_regime_tables`.
+    """
+    from scipy.optimize import lsq_linear
+
+    w0, u0, sgn, speed_r, brk, w1 = table.T
+    # Columns scaled to unit norm: u is in digits, the rest in rad/s.
+    best = None
+    for alpha in grid:
+        shape = np.where(brk > 0, 1.0, np.exp(-alpha * speed_r))
+        a_mat = np.column_stack([w0, u0, -sgn, -sgn * shape])
+        norm = np.linalg.norm(a_mat, axis=0)
+        norm = np.where(norm > 0, norm, 1.0)
+        fit = lsq_linear(
+            a_mat / norm,
+            w1,
+            bounds=(np.zeros(4), np.array([1.0 - 1e-9, np.inf, np.inf, np.inf]) * norm),
+            method="bvls",
+        )
+        sse = float(np.sum(fit.fun**2))
+        if best is None or sse < best[0]:
+            best = (sse, fit.x / norm, alpha)
+    _, (a, g, c, s_minus_c), alpha = best
+    a = min(max(a, 1e-6), 1.0 - 1e-9)
+    return (a, max(g, 1e-12), c + s_minus_c + 1e-12, c + 1e-12, alpha)
 
 
 #: Effects whose acceleration is linear in its strengths for given shape
@@ -632,28 +705,18 @@ def joint_equation_error_estimate(
     `equation_error_estimate` fits each regime alone with known effects taken
     out; here the candidate's unknown parameters join the regression, so
     they are not estimated on a base that has absorbed the effect into its
-    friction levels. One block problem: each regime's columns (rate, command,
-    Coulomb and Stribeck signs, with the regime's alpha fixed at its best of
-    the per-regime grid) on its own rows, the effect's columns shared by all
-    rows; bounded as in `equation_error_estimate` (bvls on unit-norm columns).
-
-    * torque effects linear in their strengths: cogging
-      ``T (s sin(2 pi y/P) + c cos(2 pi y/P))`` with the period P on a grid of
-      +-3 % around `candidate`'s (a residual periodogram finds it; the
-      strengths come from here), unbalance ``T (s sin y + c cos y)``, cable
-      spring ``-T k y`` (its offset is a constant torque, exactly a shift of
-      the per-direction friction levels: held at `candidate`'s);
-    * command effects (input delay, dead zone, saturation): the command
-      column transformed by the effect on a grid of its parameter;
-    * others (no linear form): `candidate` held, base re-estimated.
+    friction levels. One block problem (`_solve_block`): each regime's
+    columns with the regime's alpha fixed at its best of the per-regime
+    grid, the effect's columns shared by all rows; torque effects linear in
+    their strengths by `_joint_torque_pass`, command effects on a grid of
+    their parameter by `_joint_command_pass`; others (no linear form):
+    `candidate` held, base re-estimated.
 
     Alphas and effect are estimated in turn `passes` times (alphas with the
     effect held, then the block problem). Returns the rate parameters, the
     candidate with the estimated parameters (others as given) and both
     equation-error costs (`JointEstimate`).
     """
-    from scipy.optimize import lsq_linear
-
     name = candidate.name
     current = EffectSpec(name, dict(candidate.params))
     fixed = tuple(effects)
@@ -662,173 +725,258 @@ def joint_equation_error_estimate(
             data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
         )
         return JointEstimate(x, current, float("nan"), float("nan"))
-    noise = rate_noise(data)
-    rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
-    dt = data[0].dt
-    rows = _regression_rows(data, side_source, rest, fixed)
-    regimes = [r for r in range(4) if np.sum(rows.regime == r) >= min_samples]
-    if not regimes:
+    problem = _joint_problem(data, side_source, rest_rate_deg_s, min_samples, fixed)
+    if problem is None:
         return JointEstimate(prior, current, float("nan"), float("nan"))
-    # The command of every step after the fixed effects [digits], (sum N-1,).
-    u_all = np.concatenate(
-        [_effect_drive(d, side_angle(d, side_source)[:-1], fixed)[0] for d in data]
-    )
-    u_peak = float(np.max(np.abs(u_all))) or 1.0
-    x = prior.to_vector().reshape(4, 5).copy()
-
-    def torque_columns(shape: float) -> np.ndarray:
-        y = rows.y
-        if name == "cogging":
-            ph = 2.0 * np.pi * y / shape
-            return dt * np.column_stack([np.sin(ph), np.cos(ph)])
-        if name == "unbalance":
-            return dt * np.column_stack([np.sin(y), np.cos(y)])
-        return dt * (-y)[:, None]
-
-    def command_column(values: np.ndarray) -> np.ndarray:
-        """The command after the effect for each grid value, (G, sum N-1)."""
-        pname = _COMMAND_EFFECTS[name]
-        out = np.empty((values.size, u_all.size))
-        start = 0
-        for d in data:
-            n = len(d) - 1
-            eff = make_batched(name, {pname: values}, dt)
-            seg = u_all[start : start + n]
-            for k in range(n):
-                out[:, start + k] = eff.command(np.full(values.size, seg[k]))
-            start += n
-        return out
-
-    use = np.isin(rows.regime, regimes)
-    in_regime = [rows.regime[use] == r for r in regimes]
-    n_r = len(regimes)
-
-    def block(alpha: np.ndarray, w1: np.ndarray):
-        """The block problem at these alphas: a solver of (command, effect columns).
-
-        Columns per regime: rate, -sign, -sign * Stribeck shape (fixed here,
-        their Gram matrix formed once), then the command per regime and the
-        shared effect columns (varying over the grid); the bounded problem is
-        solved on the Cholesky factor of the Gram matrix of ``[A | w1]``
-        (``||A x - w1||^2 = ||R x - q||^2 + rest^2``: ~20 rows instead of
-        ~10^4), a relative 1e-12 ridge keeping it defined for collinear
-        columns. Columns are scaled to unit norm (u in digits, the rest rad/s).
-        """
-        f_mat = np.zeros((int(use.sum()), 3 * n_r))
-        w0, sgn, speed, brk = rows.w0[use], rows.sgn[use], rows.speed[use], rows.brk[use]
-        for i, r in enumerate(regimes):
-            m = in_regime[i]
-            shape = np.where(brk[m] > 0, 1.0, np.exp(-alpha[r] * speed[m]))
-            f_mat[m, 3 * i : 3 * i + 3] = np.column_stack([w0[m], -sgn[m], -sgn[m] * shape])
-        f_norm = np.linalg.norm(f_mat, axis=0)
-        f_norm = np.where(f_norm > 0, f_norm, 1.0)
-        f_mat /= f_norm
-        target = w1[use]
-        ff, ft, tt = f_mat.T @ f_mat, f_mat.T @ target, float(target @ target)
-
-        def solve(u0: np.ndarray, extra: np.ndarray):
-            """(sse, regime coefficients (n_r, 4) as (a, gain, Tc, Ts - Tc), effect coefficients)."""
-            k_e = extra.shape[1]
-            v_mat = np.zeros((f_mat.shape[0], n_r + k_e))
-            u0 = u0[use]
-            for i in range(n_r):
-                v_mat[in_regime[i], i] = u0[in_regime[i]]
-            v_mat[:, n_r:] = extra[use]
-            v_norm = np.linalg.norm(v_mat, axis=0)
-            v_norm = np.where(v_norm > 0, v_norm, 1.0)
-            v_mat /= v_norm
-            fv, vv, vt = f_mat.T @ v_mat, v_mat.T @ v_mat, v_mat.T @ target
-            n_c = 4 * n_r + k_e
-            gram = np.empty((n_c + 1, n_c + 1))
-            nf = 3 * n_r
-            gram[:nf, :nf], gram[:nf, nf:n_c], gram[nf:n_c, nf:n_c] = ff, fv, vv
-            gram[nf:n_c, :nf] = fv.T
-            gram[:nf, n_c], gram[nf:n_c, n_c], gram[n_c, n_c] = ft, vt, tt
-            gram[n_c, :n_c] = gram[:n_c, n_c]
-            gram[np.diag_indices_from(gram)] += 1e-12 * np.trace(gram)
-            tri = np.linalg.cholesky(gram).T
-            norm = np.r_[f_norm, v_norm]
-            lo = np.r_[np.zeros(nf + n_r), np.full(k_e, -np.inf)]
-            hi = np.full(n_c, np.inf)
-            hi[0:nf:3] = 1.0 - 1e-9
-            fit = lsq_linear(
-                tri[:n_c, :n_c], tri[:n_c, n_c], bounds=(lo * norm, hi * norm), method="bvls"
-            )
-            coef = fit.x / norm
-            sse = float(np.sum(fit.fun**2) + tri[n_c, n_c] ** 2)
-            fixed_c = coef[:nf].reshape(n_r, 3)
-            reg = np.column_stack(
-                [fixed_c[:, 0], coef[nf : nf + n_r], fixed_c[:, 1], fixed_c[:, 2]]
-            )
-            return sse, reg, coef[nf + n_r :]
-
-        return solve
-
-    cls = make_effect(current, dt).__class__
+    x = RATE_LAYOUT.as_table(prior.to_vector()).copy()
+    cls = make_effect(current, problem.dt).__class__
     for _ in range(max(passes, 1)):
         # Alphas (and a first base) with the current effect held.
-        base = (
-            equation_error_estimate(
-                data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
-            )
-            .to_vector()
-            .reshape(4, 5)
+        base = equation_error_estimate(
+            data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
         )
-        alpha = base[:, 4]
-        params = dict(current.params)
-        best = None
+        alpha = RATE_LAYOUT.column(base.to_vector(), "alpha")
         if name in _LINEAR_TORQUES:
-            w1 = rows.w1.copy()
-            if name == "cable_spring":
-                w1 = w1 - dt * params["offset_rad_s2"]
-            u0 = u_all[rows.step]
-            if name == "cogging":
-                p0 = params["period_rad"]
-                shapes = p0 * (1.0 + np.linspace(-0.03, 0.03, 61))
-            else:
-                shapes = np.array([0.0])
-            solve = block(alpha, w1)
-            for shape in shapes:
-                sse, reg, eff = solve(u0, torque_columns(shape))
-                if best is None or sse < best[0]:
-                    best = (sse, reg, eff, shape)
-            _, reg, eff, shape = best
-            if name == "cogging":
-                amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
-                params.update(amplitude_rad_s2=amp, period_rad=float(shape), phase_rad=ph)
-            elif name == "unbalance":
-                amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
-                params.update(amplitude_rad_s2=amp, phase_rad=ph)
-            else:
-                params.update(stiffness_1_s2=float(eff[0]))
+            sse, reg, params = _joint_torque_pass(problem, name, alpha, current.params)
         else:
-            pname = _COMMAND_EFFECTS[name]
-            if name == "input_delay":
-                grid = np.arange(0.0, 40.5, 0.5) * dt
-            elif name == "deadzone":
-                grid = np.linspace(0.0, 0.4, 81) * u_peak
-            else:
-                grid = np.linspace(0.3, 1.0, 71) * u_peak
-            grid = np.union1d(grid, [params[pname]])
-            lo_b, hi_b = cls.bounds[pname]
-            grid = grid[(grid >= lo_b) & (grid <= hi_b)]
-            columns = command_column(grid)
-            solve = block(alpha, rows.w1)
-            for value, u_col in zip(grid, columns):
-                sse, reg, eff = solve(u_col[rows.step], np.zeros((rows.w0.size, 0)))
-                if best is None or sse < best[0]:
-                    best = (sse, reg, eff, value)
-            _, reg, eff, value = best
-            params[pname] = float(value)
-        for i, r in enumerate(regimes):
+            sse, reg, params = _joint_command_pass(problem, data, name, alpha, current.params, cls)
+        for i, r in enumerate(problem.regimes):
             a, g, c, s_minus_c = reg[i]
             a = min(max(a, 1e-6), 1.0 - 1e-9)
             x[r] = (a, max(g, 1e-12), c + s_minus_c + 1e-12, c + 1e-12, alpha[r])
         bounded = {p: float(np.clip(v, *cls.bounds[p])) for p, v in params.items()}
         current = EffectSpec(name, bounded)
-        sse = best[0]
-    sse_base = block(alpha, rows.w1)(u_all[rows.step], np.zeros((rows.w0.size, 0)))[0]
-    return JointEstimate(RateParams.from_vector(x.ravel()), current, sse, sse_base)
+    sse_base = _base_only_sse(problem, alpha)
+    return JointEstimate(RateParams.from_vector(RATE_LAYOUT.from_table(x)), current, sse, sse_base)
+
+
+@dataclass(frozen=True)
+class _JointProblem:
+    """The regression rows of `joint_equation_error_estimate` and what every pass reuses.
+
+    Attributes:
+        rows: the usable samples (`_Rows`), K rows.
+        regimes: the regimes with enough rows, in regime order.
+        u_all: the command of every step after the fixed effects [digits], (sum N-1,).
+        u_peak: its largest magnitude (1 if all zero) [digits].
+        dt: sample period [s].
+        use: rows in those regimes, (K,).
+        in_regime: per regime of `regimes`, its rows among the used ones.
+    """
+
+    rows: _Rows
+    regimes: list[int]
+    u_all: np.ndarray
+    u_peak: float
+    dt: float
+    use: np.ndarray
+    in_regime: list[np.ndarray]
+
+
+def _joint_problem(data, side_source, rest_rate_deg_s, min_samples, fixed) -> _JointProblem | None:
+    """The rows with the fixed effects taken out; None when no regime has `min_samples`."""
+    noise = rate_noise(data)
+    rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
+    rows = _regression_rows(data, side_source, rest, fixed)
+    regimes = [r for r in range(RATE_LAYOUT.n_regimes) if np.sum(rows.regime == r) >= min_samples]
+    if not regimes:
+        return None
+    u_all = np.concatenate(
+        [_effect_drive(d, side_angle(d, side_source)[:-1], fixed)[0] for d in data]
+    )
+    u_peak = float(np.max(np.abs(u_all))) or 1.0
+    use = np.isin(rows.regime, regimes)
+    in_regime = [rows.regime[use] == r for r in regimes]
+    return _JointProblem(rows, regimes, u_all, u_peak, data[0].dt, use, in_regime)
+
+
+def _base_only_sse(problem: _JointProblem, alpha: np.ndarray) -> float:
+    """The block problem's sse without the effect (same rows and alphas) [(rad/s)^2]."""
+    rows = problem.rows
+    cols = _fixed_columns(problem, alpha, rows.w1)
+    return _solve_block(problem, cols, problem.u_all[rows.step], np.zeros((rows.w0.size, 0)))[0]
+
+
+def _torque_columns(name: str, y: np.ndarray, shape: float, dt: float) -> np.ndarray:
+    """A torque effect's columns per unit strength at angles `y` [rad], (K, 1 or 2).
+
+    Cogging ``(sin, cos)(2 pi y / shape)``, unbalance ``(sin, cos)(y)``, cable
+    spring ``-y``; times the sample period (rate change per step).
+    """
+    if name == "cogging":
+        ph = 2.0 * np.pi * y / shape
+        return dt * np.column_stack([np.sin(ph), np.cos(ph)])
+    if name == "unbalance":
+        return dt * np.column_stack([np.sin(y), np.cos(y)])
+    return dt * (-y)[:, None]
+
+
+def _command_columns(name: str, data, u_all: np.ndarray, values: np.ndarray, dt: float):
+    """The command after a command effect for each grid value, (G, sum N-1)."""
+    pname = _COMMAND_EFFECTS[name]
+    out = np.empty((values.size, u_all.size))
+    start = 0
+    for d in data:
+        n = len(d) - 1
+        eff = make_batched(name, {pname: values}, dt)
+        seg = u_all[start : start + n]
+        for k in range(n):
+            out[:, start + k] = eff.command(np.full(values.size, seg[k]))
+        start += n
+    return out
+
+
+@dataclass(frozen=True)
+class _FixedColumns:
+    """The block problem's columns fixed by the alphas (`_fixed_columns`).
+
+    Attributes:
+        f_mat: per regime rate, -sign, -sign * Stribeck shape, unit-norm, (K_used, 3 n_r).
+        f_norm: their norms before scaling, (3 n_r,).
+        target: the rate after the step on the used rows [rad/s], (K_used,).
+        ff, ft, tt: Gram blocks ``F^T F``, ``F^T target``, ``target^T target``.
+    """
+
+    f_mat: np.ndarray
+    f_norm: np.ndarray
+    target: np.ndarray
+    ff: np.ndarray
+    ft: np.ndarray
+    tt: float
+
+
+def _fixed_columns(problem: _JointProblem, alpha: np.ndarray, w1: np.ndarray) -> _FixedColumns:
+    """The columns that do not vary over an effect's grid, their Gram matrix formed once.
+
+    Columns are scaled to unit norm (u in digits, the rest rad/s).
+    """
+    rows, use, regimes = problem.rows, problem.use, problem.regimes
+    f_mat = np.zeros((int(use.sum()), 3 * len(regimes)))
+    w0, sgn, speed, brk = rows.w0[use], rows.sgn[use], rows.speed[use], rows.brk[use]
+    for i, r in enumerate(regimes):
+        m = problem.in_regime[i]
+        shape = np.where(brk[m] > 0, 1.0, np.exp(-alpha[r] * speed[m]))
+        f_mat[m, 3 * i : 3 * i + 3] = np.column_stack([w0[m], -sgn[m], -sgn[m] * shape])
+    f_norm = np.linalg.norm(f_mat, axis=0)
+    f_norm = np.where(f_norm > 0, f_norm, 1.0)
+    f_mat /= f_norm
+    target = w1[use]
+    return _FixedColumns(
+        f_mat, f_norm, target, f_mat.T @ f_mat, f_mat.T @ target, float(target @ target)
+    )
+
+
+def _solve_block(problem: _JointProblem, cols: _FixedColumns, u0: np.ndarray, extra: np.ndarray):
+    """The bounded block problem with command `u0` (K,) and effect columns `extra` (K, k_e).
+
+    Solved on the Cholesky factor of the Gram matrix of ``[A | w1]``
+    (``||A x - w1||^2 = ||R x - q||^2 + rest^2``: ~20 rows instead of ~10^4),
+    a relative 1e-12 ridge keeping it defined for collinear columns; bounds
+    as in `equation_error_estimate` (bvls on unit-norm columns). Returns
+    (sse, regime coefficients (n_r, 4) as (a, gain, Tc, Ts - Tc), effect
+    coefficients (k_e,)).
+    """
+    from scipy.optimize import lsq_linear
+
+    use, in_regime, n_r = problem.use, problem.in_regime, len(problem.regimes)
+    f_mat, f_norm = cols.f_mat, cols.f_norm
+    k_e = extra.shape[1]
+    v_mat = np.zeros((f_mat.shape[0], n_r + k_e))
+    u0 = u0[use]
+    for i in range(n_r):
+        v_mat[in_regime[i], i] = u0[in_regime[i]]
+    v_mat[:, n_r:] = extra[use]
+    v_norm = np.linalg.norm(v_mat, axis=0)
+    v_norm = np.where(v_norm > 0, v_norm, 1.0)
+    v_mat /= v_norm
+    fv, vv, vt = f_mat.T @ v_mat, v_mat.T @ v_mat, v_mat.T @ cols.target
+    n_c = 4 * n_r + k_e
+    gram = np.empty((n_c + 1, n_c + 1))
+    nf = 3 * n_r
+    gram[:nf, :nf], gram[:nf, nf:n_c], gram[nf:n_c, nf:n_c] = cols.ff, fv, vv
+    gram[nf:n_c, :nf] = fv.T
+    gram[:nf, n_c], gram[nf:n_c, n_c], gram[n_c, n_c] = cols.ft, vt, cols.tt
+    gram[n_c, :n_c] = gram[:n_c, n_c]
+    gram[np.diag_indices_from(gram)] += 1e-12 * np.trace(gram)
+    tri = np.linalg.cholesky(gram).T
+    norm = np.r_[f_norm, v_norm]
+    lo = np.r_[np.zeros(nf + n_r), np.full(k_e, -np.inf)]
+    hi = np.full(n_c, np.inf)
+    hi[0:nf:3] = 1.0 - 1e-9
+    fit = lsq_linear(tri[:n_c, :n_c], tri[:n_c, n_c], bounds=(lo * norm, hi * norm), method="bvls")
+    coef = fit.x / norm
+    sse = float(np.sum(fit.fun**2) + tri[n_c, n_c] ** 2)
+    fixed_c = coef[:nf].reshape(n_r, 3)
+    reg = np.column_stack([fixed_c[:, 0], coef[nf : nf + n_r], fixed_c[:, 1], fixed_c[:, 2]])
+    return sse, reg, coef[nf + n_r :]
+
+
+def _joint_torque_pass(
+    problem: _JointProblem, name: str, alpha: np.ndarray, params: dict[str, float]
+) -> tuple[float, np.ndarray, dict[str, float]]:
+    """One block solve of a torque effect linear in its strengths; (sse, regimes, params).
+
+    Cogging ``T (s sin(2 pi y/P) + c cos(2 pi y/P))`` with the period P on a
+    grid of +-3 % around the given one (a residual periodogram finds it; the
+    strengths come from here), unbalance ``T (s sin y + c cos y)``, cable
+    spring ``-T k y`` (its offset is a constant torque, exactly a shift of
+    the per-direction friction levels: held at the given value).
+    """
+    rows, dt, params = problem.rows, problem.dt, dict(params)
+    w1 = rows.w1.copy()
+    if name == "cable_spring":
+        w1 = w1 - dt * params["offset_rad_s2"]
+    u0 = problem.u_all[rows.step]
+    if name == "cogging":
+        shapes = params["period_rad"] * (1.0 + np.linspace(-0.03, 0.03, 61))
+    else:
+        shapes = np.array([0.0])
+    cols = _fixed_columns(problem, alpha, w1)
+    best = None
+    for shape in shapes:
+        sse, reg, eff = _solve_block(problem, cols, u0, _torque_columns(name, rows.y, shape, dt))
+        if best is None or sse < best[0]:
+            best = (sse, reg, eff, shape)
+    sse, reg, eff, shape = best
+    if name == "cogging":
+        amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
+        params.update(amplitude_rad_s2=amp, period_rad=float(shape), phase_rad=ph)
+    elif name == "unbalance":
+        amp, ph = float(np.hypot(*eff)), float(np.arctan2(eff[1], eff[0]))
+        params.update(amplitude_rad_s2=amp, phase_rad=ph)
+    else:
+        params.update(stiffness_1_s2=float(eff[0]))
+    return sse, reg, params
+
+
+def _joint_command_pass(
+    problem: _JointProblem, data, name: str, alpha: np.ndarray, params, cls
+) -> tuple[float, np.ndarray, dict[str, float]]:
+    """One grid of a command effect's parameter (delay, dead zone, saturation); (sse, regimes, params).
+
+    The command column is transformed by the effect at each grid value
+    (within the effect class `cls`'s bounds, the given value included).
+    """
+    pname = _COMMAND_EFFECTS[name]
+    dt, u_peak, rows = problem.dt, problem.u_peak, problem.rows
+    if name == "input_delay":
+        grid = np.arange(0.0, 40.5, 0.5) * dt
+    elif name == "deadzone":
+        grid = np.linspace(0.0, 0.4, 81) * u_peak
+    else:
+        grid = np.linspace(0.3, 1.0, 71) * u_peak
+    grid = np.union1d(grid, [params[pname]])
+    lo_b, hi_b = cls.bounds[pname]
+    grid = grid[(grid >= lo_b) & (grid <= hi_b)]
+    columns = _command_columns(name, data, problem.u_all, grid, dt)
+    cols = _fixed_columns(problem, alpha, rows.w1)
+    best = None
+    for value, u_col in zip(grid, columns):
+        sse, reg, eff = _solve_block(problem, cols, u_col[rows.step], np.zeros((rows.w0.size, 0)))
+        if best is None or sse < best[0]:
+            best = (sse, reg, eff, value)
+    sse, reg, _, value = best
+    return sse, reg, {**params, pname: float(value)}
 
 
 def rate_noise(data: Sequence[MeasuredData]) -> float:
@@ -885,7 +1033,7 @@ def _to_z(x: np.ndarray) -> np.ndarray:
     10 s, levels from 1e-6 to 1 rad/s per sample).
     """
     x = np.asarray(x, dtype=float)
-    r = x.reshape(*x.shape[:-1], -1, 5)
+    r = x.reshape(*x.shape[:-1], -1, RATE_LAYOUT.n_fields)
     a, g, st, c, al = (r[..., i] for i in range(5))
     tiny = 1e-300
     gap = np.maximum(st - c, 1e-6 * np.maximum(c, tiny))
@@ -905,7 +1053,7 @@ def _to_z(x: np.ndarray) -> np.ndarray:
 def _from_z(z: np.ndarray) -> np.ndarray:
     """Inverse of `_to_z`."""
     z = np.asarray(z, dtype=float)
-    r = z.reshape(*z.shape[:-1], -1, 5)
+    r = z.reshape(*z.shape[:-1], -1, RATE_LAYOUT.n_fields)
     e = np.exp(r)
     x = np.stack([1.0 - e[..., 0], e[..., 1], e[..., 2] + e[..., 3], e[..., 2], e[..., 4]], axis=-1)
     return x.reshape(z.shape)
@@ -920,7 +1068,7 @@ def _z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, 
     no response, and a floor keeps the log-variables from sliding to -inf,
     where their gradient vanishes); alpha*|omega|_rms between 1e-3 and 1e4.
     """
-    r = np.asarray(x0, float).reshape(-1, 5)
+    r = np.asarray(x0, float).reshape(-1, RATE_LAYOUT.n_fields)
     drive = r[:, 1] * u_peak
     lo = np.column_stack(
         [
@@ -978,15 +1126,17 @@ def stored_form(x: np.ndarray, b: np.ndarray) -> np.ndarray:
     The file holds the paper form (b fixed) to 6 significant digits
     (`isp_twin.model.parameters.save_parameters`); this applies the same rounding.
     """
-    x = np.asarray(x, dtype=float).reshape(*np.shape(x)[:-1], 4, 5)
+    x = RATE_LAYOUT.as_table(np.asarray(x, dtype=float))
+    levels = [RATE_LAYOUT.field_index(f) for f in ("gain", "static", "coulomb")]
+    alpha = RATE_LAYOUT.field_index("alpha")
     paper = x.copy()
-    paper[..., 1:4] = x[..., 1:4] / DEG / b[:, None]
-    paper[..., 4] = x[..., 4] * DEG
+    paper[..., levels] = x[..., levels] / DEG / b[:, None]
+    paper[..., alpha] = x[..., alpha] * DEG
     rounded = np.vectorize(lambda v: float(f"{v:.6g}"))(paper)
     out = rounded.copy()
-    out[..., 1:4] = rounded[..., 1:4] * DEG * b[:, None]
-    out[..., 4] = rounded[..., 4] / DEG
-    return out.reshape(*np.shape(x)[:-2], 20)
+    out[..., levels] = rounded[..., levels] * DEG * b[:, None]
+    out[..., alpha] = rounded[..., alpha] / DEG
+    return RATE_LAYOUT.from_table(out)
 
 
 def _robust_to_storage(x: np.ndarray, cost, free: np.ndarray, b: np.ndarray, step: float = 1e-4):
@@ -1019,8 +1169,8 @@ def _robust_to_storage(x: np.ndarray, cost, free: np.ndarray, b: np.ndarray, ste
 
 
 def _embed(x_free: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Free quantities into a (20,) vector (fixed ones: 1, never used after)."""
-    out = np.ones(20)
+    """Free quantities into a (`RATE_LAYOUT.size`,) vector (fixed ones: 1, never used after)."""
+    out = np.ones(RATE_LAYOUT.size)
     out[free] = x_free
     return out
 
@@ -1032,6 +1182,11 @@ def identify(
     progress: Callable[[str, int, float], None] | None = None,
 ) -> IdentificationResult:
     """Identify one axis from open-loop runs (all sets in one cost, Eq. 9).
+
+    The stages (module doc): free parameters and start (`_FreeParameters`),
+    read-out timing and local refinement (`_refine_from_start`), global
+    search (`_global_search`), storage rounding (`_robust_to_storage`),
+    intervals (`_intervals`).
 
     Args:
         data: the identification runs (same sample period; command in the
@@ -1047,263 +1202,405 @@ def identify(
     Raises:
         DataError: no data, mixed sample periods, or no regime visited.
     """
-    from scipy.optimize import differential_evolution, least_squares
-
     start = time.perf_counter()
+    _check_sample_periods(data)
+    free = _free_parameters(data, prior, settings)
+    search = _Search(data, free, settings, tuple(prior.effects), progress)
+    _refine_from_start(search, prior.rate_params().to_vector()[free.mask])
+    _global_search(search)
+    status = "; ".join(search.status_parts) or "equation-error estimate"
+    x_best = _from_z(np.clip(search.z_best, search.z_lo, search.z_hi)[None])[0]
+    b = np.array([r.b for r in prior.regimes])
+    x_best, moved = _robust_to_storage(x_best, search.rmse_of, free.mask, b)
+    if moved:
+        status += (
+            "; moved off a stick/slip threshold so that the stored 6-digit values reproduce the fit"
+        )
+    return _result(search, free, x_best, status, time.perf_counter() - start)
+
+
+def _check_sample_periods(data: Sequence[MeasuredData]) -> None:
+    """Raise `DataError` for no runs or runs of different sample periods."""
     if not data:
         raise DataError("no identification data given")
     dts = {round(d.dt, 12) for d in data}
     if len(dts) > 1:
         raise DataError(f"identification sets differ in sample period: {sorted(dts)} s")
-    s = settings
-    prior_rate = prior.rate_params()
-    effects = tuple(prior.effects)
+
+
+@dataclass(frozen=True)
+class _FreeParameters:
+    """Which rate-form quantities a fit moves, and the fixed vector around them.
+
+    Attributes:
+        visits: moving samples per regime, shape (n_regimes,).
+        visited: per regime, True where identified, shape (n_regimes,).
+        mask: the free entries of the rate vector, shape (`RATE_LAYOUT.size`,).
+        base: the full rate vector, prior where fixed and the equation-error
+            estimate where free, shape (`RATE_LAYOUT.size`,).
+    """
+
+    visits: np.ndarray
+    visited: np.ndarray
+    mask: np.ndarray
+    base: np.ndarray
+
+    @property
+    def x0(self) -> np.ndarray:
+        """The start: the free quantities of `base`, shape (n_free,)."""
+        return self.base[self.mask]
+
+    def full(self, xf: np.ndarray) -> RateParams:
+        """Free quantities (n_free,) or (P, n_free) -> batched `RateParams` (P,)."""
+        xf = np.atleast_2d(xf)
+        out = np.tile(self.base, (xf.shape[0], 1))
+        out[:, self.mask] = xf
+        return RateParams.from_vector(out)
+
+
+def _free_parameters(
+    data: Sequence[MeasuredData], prior: AxisParams, s: Settings
+) -> _FreeParameters:
+    """The visited regimes' quantities, started at the equation-error estimate."""
     visits = regime_visits(data, s.side_source, s.rest_rate_deg_s)
     visited = visits >= s.min_regime_samples
     if not visited.any():
         raise DataError(
-            f"no regime has {s.min_regime_samples} moving samples (visits R+,R-,L+,L-: "
-            f"{', '.join(map(str, visits))}); nothing to identify"
+            f"no regime has {s.min_regime_samples} moving samples (visits "
+            f"{','.join(RATE_LAYOUT.regimes)}: {', '.join(map(str, visits))}); nothing to identify"
         )
-    free = np.repeat(visited, 5)
+    mask = RATE_LAYOUT.regime_mask(visited)
+    prior_rate = prior.rate_params()
     x_init = equation_error_estimate(
-        data, prior_rate, s.side_source, s.rest_rate_deg_s, s.min_regime_samples, effects
+        data, prior_rate, s.side_source, s.rest_rate_deg_s, s.min_regime_samples, prior.effects
     )
     base = prior_rate.to_vector()
-    base[free] = x_init.to_vector()[free]
-    x0 = base[free]
-    evaluations = 0
+    base[mask] = x_init.to_vector()[mask]
+    return _FreeParameters(visits, visited, mask, base)
 
-    def full(xf: np.ndarray) -> RateParams:
-        xf = np.atleast_2d(xf)
-        out = np.tile(base, (xf.shape[0], 1))
-        out[:, free] = xf
-        return RateParams.from_vector(out)
 
-    timing = Timing()
+class _Search:
+    """The working state of one `identify` call (created and dropped inside it).
 
-    def batch_cost(xt: np.ndarray) -> np.ndarray:  # DE: xt shape (n_free, S)
-        nonlocal evaluations
-        evaluations += xt.shape[1]
-        return np.atleast_1d(
-            rmse(full(xt.T), data, s.side_source, s.rest_rate_deg_s, effects, timing, s.integration)
+    Holds the problem (runs, free parameters, limits of the log-variables)
+    and what the stages share: the read-out timing in use, the count of
+    simulated parameter sets, the best point and cost, the cost history and
+    per-iteration log, the status text, and the last residual/Jacobian (so
+    least squares' separate residual and Jacobian calls simulate once).
+    """
+
+    def __init__(
+        self,
+        data: Sequence[MeasuredData],
+        free: _FreeParameters,
+        s: Settings,
+        effects: tuple[EffectSpec, ...],
+        progress: Callable[[str, int, float], None] | None,
+    ) -> None:
+        self.data, self.free, self.s, self.effects, self.progress = data, free, s, effects, progress
+        self.timing = Timing()
+        self.evaluations = 0
+        self.initial_cost = float(self.batch_cost(free.x0[:, None])[0])
+        self.history: list[float] = [self.initial_cost]
+        self.log: list[SearchStep] = [SearchStep("start", self.evaluations, self.initial_cost)]
+        self.status_parts: list[str] = []
+        self.last_refinement: int | None = None  # scipy least_squares status
+        self.noise = rate_noise(data)
+        self.target = s.converged_ratio * self.noise
+        u_peak = max(float(np.max(np.abs(d.u))) for d in data)
+        speed = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
+        self.z_lo, self.z_hi = _z_limits(free.x0, u_peak, max(speed, 1e-9))
+        self.cache: dict[str, np.ndarray] = {}
+        self.starts: list[np.ndarray] = [_to_z(free.x0)]
+        self.z_best = self.starts[0]
+        self.best_cost = np.inf
+
+    def residuals_of(self, xs: np.ndarray) -> np.ndarray:
+        """`residuals` at free quantities (P, n_free) with this search's timing."""
+        s = self.s
+        return residuals(
+            self.free.full(xs),
+            self.data,
+            s.side_source,
+            s.rest_rate_deg_s,
+            self.effects,
+            self.timing,
+            s.integration,
         )
 
-    initial_cost = float(batch_cost(x0[:, None])[0])
-    history: list[float] = [initial_cost]
-    rest = s.rest_rate_deg_s
-    noise = rate_noise(data)
-    target = s.converged_ratio * noise
-    n_free = int(free.sum())
-    u_peak = max(float(np.max(np.abs(d.u))) for d in data)
-    speed = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
-    z_lo, z_hi = _z_limits(x0, u_peak, max(speed, 1e-9))
+    def rmse_of(self, xs: np.ndarray) -> np.ndarray:
+        """Eq. 9 at free quantities (P, n_free), not counted as evaluations."""
+        s = self.s
+        return rmse(
+            self.free.full(xs),
+            self.data,
+            s.side_source,
+            s.rest_rate_deg_s,
+            self.effects,
+            self.timing,
+            s.integration,
+        )
 
-    def z_cost(zs: np.ndarray) -> np.ndarray:  # zs (S, n_free)
-        return batch_cost(_from_z(np.clip(zs, z_lo, z_hi)).T)
+    def batch_cost(self, xt: np.ndarray) -> np.ndarray:
+        """Eq. 9 at free quantities (n_free, S) (the evolutionary search's shape)."""
+        self.evaluations += xt.shape[1]
+        return np.atleast_1d(self.rmse_of(xt.T))
 
-    cache: dict[str, np.ndarray] = {}
+    def z_cost(self, zs: np.ndarray) -> np.ndarray:
+        """Eq. 9 at search variables (S, n_free), clipped to their limits."""
+        return self.batch_cost(_from_z(np.clip(zs, self.z_lo, self.z_hi)).T)
 
-    def evaluate(z: np.ndarray, jacobian: bool) -> None:
+    def evaluate(self, z: np.ndarray, jacobian: bool) -> None:
         """The residual at z, and with `jacobian` its forward differences.
 
         The columns are simulated only when asked for: least squares needs
         none at a trial point it then rejects (each column costs one set).
         """
-        nonlocal evaluations
         h = np.full(z.size, 1e-6)
+        cache = self.cache
         if "z" not in cache or not np.array_equal(cache["z"], z):
             pts = np.vstack([z, z + np.diag(h)]) if jacobian else z[None]
-            evaluations += pts.shape[0]
-            e = residuals(
-                full(_from_z(pts)), data, s.side_source, rest, effects, timing, s.integration
-            )
+            self.evaluations += pts.shape[0]
+            e = self.residuals_of(_from_z(pts))
             cache.clear()
             cache.update(z=z.copy(), e=e[0])
             if jacobian:
                 cache["j"] = ((e[1:] - e[0]) / h[:, None]).T
-            if progress is not None:
-                progress("refine", evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
+            if self.progress is not None:
+                self.progress("refine", self.evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
         elif jacobian and "j" not in cache:
             pts = z + np.diag(h)
-            evaluations += pts.shape[0]
-            e = residuals(
-                full(_from_z(pts)), data, s.side_source, rest, effects, timing, s.integration
-            )
+            self.evaluations += pts.shape[0]
+            e = self.residuals_of(_from_z(pts))
             cache["j"] = ((e - cache["e"]) / h[:, None]).T
 
-    def resid(z: np.ndarray) -> np.ndarray:
-        evaluate(z, jacobian=False)
-        return cache["e"]
+    def resid(self, z: np.ndarray) -> np.ndarray:
+        self.evaluate(z, jacobian=False)
+        return self.cache["e"]
 
-    def jac(z: np.ndarray) -> np.ndarray:
-        evaluate(z, jacobian=True)
-        return cache["j"]
+    def jac(self, z: np.ndarray) -> np.ndarray:
+        self.evaluate(z, jacobian=True)
+        return self.cache["j"]
 
-    def refine(z: np.ndarray, budget: int) -> tuple[np.ndarray, float, str]:
+    def refine(self, z: np.ndarray, budget: int) -> tuple[np.ndarray, float, str]:
+        """Least squares on Eq. 9's residuals from z; (z, cost, scipy's message)."""
+        from scipy.optimize import least_squares
+
         ls = least_squares(
-            resid,
-            np.clip(z, z_lo, z_hi),
-            jac=jac,
-            bounds=(z_lo, z_hi),
+            self.resid,
+            np.clip(z, self.z_lo, self.z_hi),
+            jac=self.jac,
+            bounds=(self.z_lo, self.z_hi),
             x_scale="jac",
             max_nfev=budget,
             method="trf",
         )
+        self.last_refinement = int(ls.status)
         return ls.x, float(np.sqrt(2 * ls.cost / ls.fun.size)), ls.message.rstrip(".")
 
+    def record(self, stage: str, cost: float | None = None) -> None:
+        """Append the best cost (or `cost`) to the history and the log."""
+        value = self.best_cost if cost is None else cost
+        self.history.append(value)
+        self.log.append(SearchStep(stage, self.evaluations, value))
+
     def keep_better(
-        z: np.ndarray, cost: float, label: str, record: bool = False, budget: int = 0
+        self, z: np.ndarray, cost: float, label: str, stage: str = "", budget: int = 0
     ) -> None:
         """Refine from z (when refinement is on); keep the result if it beats the best.
 
-        The best cost goes to the history after a refinement, or when `record`.
+        The best cost goes to the history after a refinement, or when a
+        `stage` names the step (recorded without refinement too).
         """
-        nonlocal z_best, best_cost
-        refined = s.refine and s.refine_evaluations > 0
+        refined = self.s.refine and self.s.refine_evaluations > 0
         if refined:
-            z, cost, msg = refine(z, budget or s.refine_evaluations)
-            status_parts.append(f"least squares from {label} ({msg})")
-        if cost < best_cost:
-            z_best, best_cost = z, cost
-        if refined or record:
-            history.append(best_cost)
+            z, cost, msg = self.refine(z, budget or self.s.refine_evaluations)
+            self.status_parts.append(f"least squares from {label} ({msg})")
+        if cost < self.best_cost:
+            self.z_best, self.best_cost = z, cost
+        if refined or stage:
+            self.record("refine" if refined else stage)
 
-    starts = [_to_z(x0)]
-    if s.prior_in_search:
-        starts.append(_to_z(prior_rate.to_vector()[free]))
-    choose_timing = s.timing is None and s.side_source == "measured"
+    def best_timing(self, z: np.ndarray, options=TIMINGS) -> tuple[Timing, float]:
+        """The read-out timing of `options` with the lowest cost at z, and that cost.
 
-    def best_timing(z: np.ndarray, options=TIMINGS) -> tuple[Timing, float]:
-        """The read-out timing of `options` with the lowest cost at z, and that cost."""
-        nonlocal timing
+        Leaves the search at that timing.
+        """
         costs = {}
         for candidate in options:
-            timing = candidate
-            costs[candidate] = float(z_cost(z[None])[0])
-        timing = min(costs, key=costs.get)
-        return timing, costs[timing]
+            self.timing = candidate
+            costs[candidate] = float(self.z_cost(z[None])[0])
+        self.timing = min(costs, key=costs.get)
+        return self.timing, costs[self.timing]
 
-    status_parts: list[str] = []
-    if not choose_timing:
+
+def _refine_from_start(search: _Search, prior_free: np.ndarray) -> None:
+    """Read-out timing and least-squares refinement from the data's start.
+
+    `prior_free`: the prior's free quantities, a second start with
+    `Settings.prior_in_search`.
+    """
+    s = search.s
+    starts = search.starts
+    if s.prior_in_search:
+        starts.append(_to_z(prior_free))
+    if s.timing is not None or s.side_source != "measured":
         if s.timing is not None:
-            timing = s.timing
-        start_costs = z_cost(np.array(starts))
-        z_best, best_cost = starts[int(np.argmin(start_costs))], float(np.min(start_costs))
-        keep_better(z_best, best_cost, "the data's start")
-    else:
-        # What a sample means in time (`Timing`). The equation-error start
-        # reads the gyro as a point value, so at the start that reading looks
-        # best even where the gyro averages, and fitted at the wrong read-out
-        # a fast axis settles in another basin: both gyro readings are refined
-        # from the start (half-plane read at the step's start, a third of the
-        # budget each), the better fit is kept; the half-plane shift is
-        # chosen at the fitted point (at the start it only follows the noise
-        # of a poor fit).
-        z_best, best_cost = starts[0], np.inf
-        for average in (False, True):
-            options = (Timing(0.0, average),)
-            picks = [best_timing(z, options) for z in starts]
-            i = int(np.argmin([c for _, c in picks]))
-            timing = picks[i][0]
-            cache.clear()
-            keep_better(
-                starts[i],
-                picks[i][1],
-                f"the data's start, {timing.describe()}",
-                budget=max(1, s.refine_evaluations // 3),
-            )
-        # Chosen again at the fitted point and refined with the full budget.
-        cache.clear()
-        timing, cost_at = best_timing(z_best)
-        status_parts.append(timing.describe())
-        best_cost = cost_at
-        keep_better(z_best, best_cost, "the best point at that timing", record=True)
-    if s.generations > 0 and best_cost > target:
-        # Not at the noise: a global search in a box around the best point
-        # (spans of the log-parameters below), then least squares again.
-        span = np.tile(_Z_SPAN, n_free // 5)
-        lo = np.maximum(z_best - span, z_lo)
-        hi = np.minimum(z_best + span, z_hi)
-        rng = np.random.default_rng(s.seed)
-        init = lo + (hi - lo) * rng.random((s.population, n_free))
-        init[0] = np.clip(z_best, lo, hi)
-        for i, z in enumerate(starts[: s.population - 1]):
-            init[i + 1] = np.clip(z, lo, hi)
-
-        def on_generation(intermediate_result):
-            history.append(float(intermediate_result.fun))
-            if progress is not None:
-                progress("search", len(history), history[-1])
-
-        de = differential_evolution(
-            lambda zt: z_cost(zt.T),
-            list(zip(lo, hi)),
-            maxiter=s.generations,
-            init=init,
-            seed=s.seed,
-            vectorized=True,
-            updating="deferred",
-            polish=False,
-            tol=0.0,
-            callback=on_generation,
+            search.timing = s.timing
+        start_costs = search.z_cost(np.array(starts))
+        search.z_best = starts[int(np.argmin(start_costs))]
+        search.best_cost = float(np.min(start_costs))
+        search.keep_better(search.z_best, search.best_cost, "the data's start")
+        return
+    # What a sample means in time (`Timing`). The equation-error start
+    # reads the gyro as a point value, so at the start that reading looks
+    # best even where the gyro averages, and fitted at the wrong read-out
+    # a fast axis settles in another basin: both gyro readings are refined
+    # from the start (half-plane read at the step's start, a third of the
+    # budget each), the better fit is kept; the half-plane shift is
+    # chosen at the fitted point (at the start it only follows the noise
+    # of a poor fit).
+    search.z_best, search.best_cost = starts[0], np.inf
+    for average in (False, True):
+        options = (Timing(0.0, average),)
+        picks = [search.best_timing(z, options) for z in starts]
+        i = int(np.argmin([c for _, c in picks]))
+        search.timing = picks[i][0]
+        search.cache.clear()
+        search.keep_better(
+            starts[i],
+            picks[i][1],
+            f"the data's start, {search.timing.describe()}",
+            budget=max(1, s.refine_evaluations // 3),
         )
-        status_parts.append(f"differential evolution ({s.generations} generations)")
-        keep_better(de.x, float(de.fun), "its best", record=True)
-    status = "; ".join(status_parts) or "equation-error estimate"
-    x_best = _from_z(np.clip(z_best, z_lo, z_hi)[None])[0]
+    # Chosen again at the fitted point and refined with the full budget.
+    search.cache.clear()
+    timing, cost_at = search.best_timing(search.z_best)
+    search.status_parts.append(timing.describe())
+    search.best_cost = cost_at
+    search.keep_better(search.z_best, search.best_cost, "the best point at that timing", "timing")
 
-    def _x_jacobian(xf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        h = 1e-6 * np.maximum(np.abs(xf), 1e-9)
-        pts = np.vstack([xf, xf + np.diag(h)])
-        e = residuals(full(pts), data, s.side_source, rest, effects, timing, s.integration)
-        return e[0], ((e[1:] - e[0]) / h[:, None]).T
 
-    b = np.array([r.b for r in prior.regimes])
-    x_best, moved = _robust_to_storage(
-        x_best,
-        lambda xs: rmse(full(xs), data, s.side_source, rest, effects, timing, s.integration),
-        free,
-        b,
+def _global_search(search: _Search) -> None:
+    """Differential evolution around the best point, then least squares again.
+
+    Runs only when the fit is not at the noise (`Settings.converged_ratio`)
+    and `Settings.generations` > 0; the box spans `_Z_SPAN` of the
+    log-parameters around the best point.
+    """
+    from scipy.optimize import differential_evolution
+
+    s = search.s
+    if not (s.generations > 0 and search.best_cost > search.target):
+        return
+    n_free = search.z_best.size
+    span = np.tile(_Z_SPAN, int(search.free.visited.sum()))
+    lo = np.maximum(search.z_best - span, search.z_lo)
+    hi = np.minimum(search.z_best + span, search.z_hi)
+    rng = np.random.default_rng(s.seed)
+    init = lo + (hi - lo) * rng.random((s.population, n_free))
+    init[0] = np.clip(search.z_best, lo, hi)
+    for i, z in enumerate(search.starts[: s.population - 1]):
+        init[i + 1] = np.clip(z, lo, hi)
+
+    def on_generation(intermediate_result):
+        search.record("search", float(intermediate_result.fun))
+        if search.progress is not None:
+            search.progress("search", len(search.history), search.history[-1])
+
+    de = differential_evolution(
+        lambda zt: search.z_cost(zt.T),
+        list(zip(lo, hi)),
+        maxiter=s.generations,
+        init=init,
+        seed=s.seed,
+        vectorized=True,
+        updating="deferred",
+        polish=False,
+        tol=0.0,
+        callback=on_generation,
     )
-    if moved:
-        status += (
-            "; moved off a stick/slip threshold so that the stored 6-digit values reproduce the fit"
-        )
-    e, j = _x_jacobian(x_best)
+    search.status_parts.append(f"differential evolution ({s.generations} generations)")
+    search.keep_better(de.x, float(de.fun), "its best", "search")
+
+
+def _intervals(
+    search: _Search, x_best: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Confidence half-widths and identifiability at the stored point (module doc, step 6).
+
+    Returns the residuals there (M,), ci95 and identifiable over the full
+    rate vector (`RATE_LAYOUT.size`,), and the residuals' lag-1 correlation.
+    """
+    data, mask = search.data, search.free.mask
+    h = 1e-6 * np.maximum(np.abs(x_best), 1e-9)
+    e_all = search.residuals_of(np.vstack([x_best, x_best + np.diag(h)]))
+    e, j = e_all[0], ((e_all[1:] - e_all[0]) / h[:, None]).T
     breaks = list(np.cumsum([0] + [len(d) - 1 for d in data]))
     scale = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
-    ci_f, ci_floor_f, rho = _confidence(j, e, breaks, s.confidence, _REFERENCE_NOISE * scale)
-    rate = full(x_best)
-    rate = RateParams.from_vector(rate.to_vector()[0])
-    ci = np.full(20, np.nan)
-    ident = np.zeros(20, dtype=bool)
+    ci_f, ci_floor_f, rho = _confidence(j, e, breaks, search.s.confidence, _REFERENCE_NOISE * scale)
+    ci = np.full(RATE_LAYOUT.size, np.nan)
+    ident = np.zeros(RATE_LAYOUT.size, dtype=bool)
     sensitive = np.linalg.norm(j, axis=0) > 0
-    ident[free] = sensitive & (ci_floor_f < _MAX_RELATIVE_CI * np.abs(x_best))
-    ci[free] = np.where(ident[free], ci_f, np.nan)
+    ident[mask] = sensitive & (ci_floor_f < _MAX_RELATIVE_CI * np.abs(x_best))
+    ci[mask] = np.where(ident[mask], ci_f, np.nan)
+    return e, ci, ident, float(rho)
+
+
+def _outcome(search: _Search, cost: float) -> IdentificationStatus:
+    """The status enum of a finished search with final cost `cost` [rad/s]."""
+    if cost <= search.target:
+        return IdentificationStatus.AT_NOISE
+    if search.last_refinement is None:
+        return IdentificationStatus.NOT_AT_NOISE
+    if search.last_refinement == 0:  # scipy: the evaluation budget ran out
+        return IdentificationStatus.MAX_EVALUATIONS
+    return IdentificationStatus.CONVERGED
+
+
+def _result(
+    search: _Search, free: _FreeParameters, x_best: np.ndarray, status: str, wall_time_s: float
+) -> IdentificationResult:
+    """The `IdentificationResult` at the stored point `x_best` (n_free,)."""
+    s = search.s
+    e, ci, ident, rho = _intervals(search, x_best)
+    rate = RateParams.from_vector(free.full(x_best).to_vector()[0])
     rmse_train = {
-        d.name: float(rmse(rate, [d], s.side_source, rest, effects, timing, s.integration))
-        for d in data
+        d.name: float(
+            rmse(
+                rate,
+                [d],
+                s.side_source,
+                s.rest_rate_deg_s,
+                search.effects,
+                search.timing,
+                s.integration,
+            )
+        )
+        for d in search.data
     }
+    cost = float(np.sqrt(np.mean(e**2)))
     return IdentificationResult(
         rate=rate,
         ci95=ci,
         identifiable=ident,
-        visits=visits,
-        regime_identified=tuple(bool(v) for v in visited),
+        visits=free.visits,
+        regime_identified=tuple(bool(v) for v in free.visited),
         rmse_train=rmse_train,
-        cost=float(np.sqrt(np.mean(e**2))),
-        history=tuple(history),
-        initial_cost=initial_cost,
-        rho=float(rho),
-        evaluations=evaluations,
-        wall_time_s=time.perf_counter() - start,
+        cost=cost,
+        history=tuple(search.history),
+        initial_cost=search.initial_cost,
+        rho=rho,
+        evaluations=search.evaluations,
+        wall_time_s=wall_time_s,
         status=status,
         settings=s,
-        effects=effects,
-        timing=timing,
-        noise=noise,
+        effects=search.effects,
+        timing=search.timing,
+        noise=search.noise,
         integration=s.integration,
+        outcome=_outcome(search, cost),
+        log=tuple(search.log),
     )
 
 
@@ -1319,7 +1616,7 @@ def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = 
     regimes = list(result.rate.to_regimes(b))
     ci_rate = RateParams.from_vector(result.ci95)
     ci_regimes: list[RegimeParams | None] = []
-    for r in range(4):
+    for r in range(RATE_LAYOUT.n_regimes):
         if not result.regime_identified[r]:
             regimes[r] = prior.regimes[r]
             ci_regimes.append(None)
@@ -1346,4 +1643,4 @@ def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = 
 
 def rate_labels() -> list[str]:
     """Labels of the (20,) vector entries, e.g. ``R+.gain``."""
-    return [f"{r}.{f}" for r in REGIMES for f in RATE_FIELDS]
+    return RATE_LAYOUT.labels()

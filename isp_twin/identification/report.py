@@ -136,6 +136,8 @@ def result_json(
         "cost_deg_s": result.cost / DEG,
         "noise_floor_deg_s": num(result.noise / DEG),
         "status": result.status,
+        "outcome": result.outcome.value,
+        "search_log": [step.to_json() for step in result.log],
         "evaluations": result.evaluations,
         "wall_time_s": result.wall_time_s,
         "residual_lag1_correlation": num(result.rho),
