@@ -391,8 +391,6 @@ LONG_FUNCTIONS = {
     "isp_twin/identification/fit.py::joint_equation_error_estimate",
     "isp_twin/identification/report.py::write_report",
     "isp_twin/identification/report.py::result_json",
-    "isp_twin/diagnosis/search.py::diagnose",
-    "isp_twin/diagnosis/search.py::Diagnosis.to_json",
     "isp_twin/diagnosis/candidates.py::fit_candidates",
     "isp_twin/diagnosis/fit.py::lm_steps",
     "isp_twin/diagnosis/report.py::write_report",
