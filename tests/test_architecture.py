@@ -385,8 +385,6 @@ LONG_FUNCTIONS = {
     # own issue; split there, not here.
     "isp_twin/identification/report.py::write_report",
     "isp_twin/identification/report.py::result_json",
-    "isp_twin/diagnosis/search.py::diagnose",
-    "isp_twin/diagnosis/search.py::Diagnosis.to_json",
     "isp_twin/diagnosis/fit.py::lm_steps",
     "isp_twin/diagnosis/report.py::write_report",
     "isp_twin/diagnosis/residual.py::analyse",

@@ -138,7 +138,7 @@ def execute(args: argparse.Namespace) -> int:
             candidates=candidates,
             max_rounds=args.max_rounds,
             max_iter=args.iterations,
-            side=args.side,
+            side_source=args.side,
             seed=args.seed,
             base_search=args.base_search,
             integration=integration,

@@ -5,6 +5,57 @@ and with each candidate of the library, compare them on held-out data (the
 given held-out runs, or leave-one-run-out cross-validation over the training
 runs), accept the best significant one (`selection`), add it to the model and
 look again; stop when nothing significant is left or after `max_rounds`.
+
+`diagnose` in stages: the inputs checked (`_checked_inputs`), the data's
+read-out timing (`_read_out_timing`) and angle (`_side_choice`), the runs
+stacked (`_stacked`), the given model held out (`_given_held`), the rounds
+(`_round`: candidates refitted -> held-out residuals and verdicts
+(`_judged`) -> joint restarts (`_joint_stage`) -> re-opened rate parameters
+(`_reopen_stage`) -> acceptance (`_acceptance`)), and the final model
+(`_final_diagnosis`).
+
+Options of `diagnose`:
+    max_iter: Levenberg-Marquardt iterations per fit (8: LuGre's bristle
+        force trades against the friction levels and can need more than
+        6, docs/diagnosis.md "Effect-only polish").
+    cv_iter: iterations per cross-validation fold (warm-started).
+    side_source: where the half-plane of the regimes comes from
+        (`FIXED_SIDE`): ``measured`` (the measured angle fused with the
+        integrated rate, read at the time `identify` finds for the data:
+        `isp_twin.identification.fit.side_angle`), ``raw`` (the angle as
+        read), ``right`` or ``left`` (fixed: a motor that spins freely,
+        where the split means nothing).
+    seed: seed of the base model's global search.
+    base_search: fit the base model (no new effect) with the global
+        method of `isp_twin.identification.fit.identify` before the rounds
+        (and refit the winner the same way with its effect held), so
+        that no effect is asked to explain a base model the optimizer
+        left short of its best; False (default): start from the file,
+        which `isp-twin identify` wrote with that same global method.
+        Opt-in: it costs an identification per round, and an effect
+        that trades against the friction levels (a dead zone) can be
+        absorbed by the base fit (docs/diagnosis.md).
+    integration: how the model integrates a sample (the same as the
+        parameter file was identified with; `Integration`).
+    timing: the data's read-out timing when known (`Timing`); None:
+        found by the base model's global search (`base_search`), else
+        the one of `isp_twin.identification.fit.TIMINGS` that fits best at
+        the file's parameters, as `identify` chooses it.
+    reopen: re-start the `REOPEN_TOP` leading significant candidates'
+        rate parameters from the equation-error start with their effect
+        held (`_reopen_rates`), refit them with `identify`'s global
+        method and their effect held when none is at the noise
+        (`_refit_globally`), and judge them again. Opt-in: on benchmark
+        seed cable_spring 0 it brings the spring and an unbalance (alike
+        near angle 0) both to the noise and the unbalance ranks first
+        (docs/diagnosis.md "Re-opened rate parameters").
+    joint: in round 1, restart the leading candidates (and the base)
+        from base and effect estimated together
+        (`isp_twin.identification.fit.joint_equation_error_estimate`),
+        refine them jointly, and refit the leading significant one
+        globally when it is not at the noise (docs/diagnosis.md "Joint
+        start"); False: the local refits alone (before issue 8's joint
+        start).
 """
 
 from __future__ import annotations
@@ -30,6 +81,7 @@ from isp_twin.errors import DataError, ParameterError, nearest
 from isp_twin.identification.fit import (
     JOINT_FORMS,
     TIMINGS,
+    IdentificationResult,
     JointEstimate,
     Timing,
     equation_error_estimate,
@@ -42,7 +94,13 @@ from isp_twin.identification.fit import Settings as IdSettings
 from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
 from isp_twin.identification.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.model.effects import EFFECTS, effect_class
-from isp_twin.model.parameters import AxisParams, EffectSpec, ParameterSet, RateParams
+from isp_twin.model.parameters import (
+    RATE_LAYOUT,
+    AxisParams,
+    EffectSpec,
+    ParameterSet,
+    RateParams,
+)
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.units import DEG
 from isp_twin.vocabulary import SIDE_L, SIDE_R
@@ -167,62 +225,13 @@ class Diagnosis:
 
     def to_json(self) -> dict:
         """The ``--json`` record (see docs/diagnosis.md)."""
-        acc = self.accepted
         first = self.rounds[0]
-        ratio = self.rmse_after / self.noise_floor if self.noise_floor > 0 else float("inf")
-        converged = bool(ratio <= CONVERGED_RATIO)
         return json_safe(
             {
                 "axis": self.axis,
-                "converged": converged,
-                "rmse_over_noise_floor": ratio,
-                "verdict": (
-                    f"held-out RMS error {ratio:.2f} x the noise floor: "
-                    + (
-                        "the model is at the noise"
-                        if converged
-                        else "NOT CONVERGED: the model has not converged or lacks an effect the "
-                        "library does not have (try more --iterations, other runs, or a new effect)"
-                    )
-                ),
-                "tentative_effects": list(self.tentative),
-                "equivalent_effects": list(self.equivalent),
-                "timing": {
-                    "gyro_average": self.timing.gyro_average,
-                    "side_shift_steps": self.timing.side_shift,
-                },
-                "integration": {
-                    "substeps_per_sample": self.integration.substeps,
-                    "midpoint_friction": self.integration.midpoint_friction,
-                    "split_reversals": self.integration.split_reversals,
-                    "exact_effect_hold": self.integration.exact_effect_hold,
-                },
-                "units": {
-                    "rmse_before": "rad/s",
-                    "rmse_baseline_refit": "rad/s",
-                    "rmse_after": "rad/s",
-                    "noise_floor": "rad/s",
-                    "holdout_rmse": "rad/s",
-                    "effect_parameters": "SI, unit in the parameter name",
-                },
-                "rmse_before_deg_s": self.rmse_before / DEG,
-                "rmse_after_deg_s": self.rmse_after / DEG,
-                "noise_floor_deg_s": self.noise_floor / DEG,
-                "selected_effect": self.selected_effect,
-                "effect_parameters": dict(acc[0].params) if acc else {},
-                "effect_ci95": dict(acc[0].ci95) if acc else {},
-                "all_selected": [
-                    {"name": f.name, "parameters": dict(f.params), "ci95": dict(f.ci95)}
-                    for f in acc
-                ],
-                "rmse_before": self.rmse_before,
-                "rmse_baseline_refit": float(_rms(first.holdout_before)),
-                "rmse_after": self.rmse_after,
-                "refit_adopted": bool(
-                    not acc and self.refit is not None and self.refit.significant
-                ),
-                "noise_floor": self.noise_floor,
-                "holdout": list(self.holdout_names),
+                **self._verdict_json(),
+                **self._model_json(),
+                **self._effects_json(),
                 "ranking": [
                     {
                         "name": v.name,
@@ -243,6 +252,70 @@ class Diagnosis:
                 "analysis_after": self.analysis_after.summary(),
             }
         )
+
+    def _verdict_json(self) -> dict:
+        """Whether the final model is at the noise, and the effects set aside."""
+        ratio = self.rmse_after / self.noise_floor if self.noise_floor > 0 else float("inf")
+        converged = bool(ratio <= CONVERGED_RATIO)
+        return {
+            "converged": converged,
+            "rmse_over_noise_floor": ratio,
+            "verdict": (
+                f"held-out RMS error {ratio:.2f} x the noise floor: "
+                + (
+                    "the model is at the noise"
+                    if converged
+                    else "NOT CONVERGED: the model has not converged or lacks an effect the "
+                    "library does not have (try more --iterations, other runs, or a new effect)"
+                )
+            ),
+            "tentative_effects": list(self.tentative),
+            "equivalent_effects": list(self.equivalent),
+        }
+
+    def _model_json(self) -> dict:
+        """How the data were read and the model integrated, and the record's units."""
+        return {
+            "timing": {
+                "gyro_average": self.timing.gyro_average,
+                "side_shift_steps": self.timing.side_shift,
+            },
+            "integration": {
+                "substeps_per_sample": self.integration.substeps,
+                "midpoint_friction": self.integration.midpoint_friction,
+                "split_reversals": self.integration.split_reversals,
+                "exact_effect_hold": self.integration.exact_effect_hold,
+            },
+            "units": {
+                "rmse_before": "rad/s",
+                "rmse_baseline_refit": "rad/s",
+                "rmse_after": "rad/s",
+                "noise_floor": "rad/s",
+                "holdout_rmse": "rad/s",
+                "effect_parameters": "SI, unit in the parameter name",
+            },
+        }
+
+    def _effects_json(self) -> dict:
+        """The selected effects with their parameters, and the held-out errors."""
+        acc = self.accepted
+        return {
+            "rmse_before_deg_s": self.rmse_before / DEG,
+            "rmse_after_deg_s": self.rmse_after / DEG,
+            "noise_floor_deg_s": self.noise_floor / DEG,
+            "selected_effect": self.selected_effect,
+            "effect_parameters": dict(acc[0].params) if acc else {},
+            "effect_ci95": dict(acc[0].ci95) if acc else {},
+            "all_selected": [
+                {"name": f.name, "parameters": dict(f.params), "ci95": dict(f.ci95)} for f in acc
+            ],
+            "rmse_before": self.rmse_before,
+            "rmse_baseline_refit": float(_rms(self.rounds[0].holdout_before)),
+            "rmse_after": self.rmse_after,
+            "refit_adopted": bool(not acc and self.refit is not None and self.refit.significant),
+            "noise_floor": self.noise_floor,
+            "holdout": list(self.holdout_names),
+        }
 
 
 def _rms(parts) -> float:
@@ -310,29 +383,6 @@ def _cv_residuals(
     return out
 
 
-def _judged_again(verdicts, reopened, fits, held_of, base_held, base_bic, floor):
-    """The verdicts with the re-opened candidates judged again, best held-out first.
-
-    Args:
-        verdicts: the current verdicts.
-        reopened: names of the candidates refitted since (their fits in `fits`).
-        fits, held_of: each candidate's fit and held-out residuals, by name.
-        base_held, base_bic, floor: the base model's held-out residuals and
-            BIC, and the noise floor, as `judge` takes them.
-    """
-    again = [
-        _checked(
-            judge(v.name, base_held, held_of[v.name], base_bic, fits[v.name].bic, floor),
-            fits[v.name],
-            False,
-        )
-        if v.name in reopened
-        else v
-        for v in verdicts
-    ]
-    return sorted(again, key=lambda v: v.holdout_rmse)
-
-
 def diagnose(
     runs: Sequence,
     params: ParameterSet,
@@ -342,7 +392,7 @@ def diagnose(
     max_rounds: int = 2,
     max_iter: int = DEFAULT_ITERATIONS,
     cv_iter: int = 2,
-    side: str = "measured",
+    side_source: str = "measured",
     seed: int = 0,
     base_search: bool = False,
     integration: Integration = DEFAULT_INTEGRATION,
@@ -353,69 +403,166 @@ def diagnose(
     """Diagnose what the model of one axis misses in measured open-loop runs.
 
     Args:
-        runs: training runs (`MeasuredData`), same sample period as the
-            parameter set.
+        runs: training runs (`MeasuredData`), same sample period as the parameter set.
         params: the current parameter set.
         axis: which axis of the set the runs belong to.
-        holdout: held-out runs; empty for cross-validation over `runs`
-            (a single run is split in two halves).
+        holdout: held-out runs; empty for cross-validation over `runs` (a
+            single run is split in two halves).
         candidates: effect names to test (default: `LIBRARY` minus the
             effects the axis already has).
         max_rounds: at most this many effects are added.
-        max_iter: Levenberg-Marquardt iterations per fit (8: LuGre's bristle
-            force trades against the friction levels and can need more than
-            6, docs/diagnosis.md "Effect-only polish").
-        cv_iter: iterations per cross-validation fold (warm-started).
-        side: half-plane of the regimes: ``measured`` (the measured angle
-            fused with the integrated rate, read at the time `identify` finds
-            for the data: `isp_twin.identification.fit.side_angle`), ``right`` or
-            ``left`` (fixed: a motor that spins freely, where the split means
-            nothing).
-        seed: seed of the base model's global search.
-        base_search: fit the base model (no new effect) with the global
-            method of `isp_twin.identification.fit.identify` before the rounds
-            (and refit the winner the same way with its effect held), so
-            that no effect is asked to explain a base model the optimizer
-            left short of its best; False (default): start from the file,
-            which `isp-twin identify` wrote with that same global method.
-            Opt-in: it costs an identification per round, and an effect
-            that trades against the friction levels (a dead zone) can be
-            absorbed by the base fit (docs/diagnosis.md).
-        integration: how the model integrates a sample (the same as the
-            parameter file was identified with; `Integration`).
-        timing: the data's read-out timing when known (`Timing`); None:
-            found by the base model's global search (`base_search`), else
-            the one of `isp_twin.identification.fit.TIMINGS` that fits best at
-            the file's parameters, as `identify` chooses it.
-        reopen: re-start the `REOPEN_TOP` leading significant candidates'
-            rate parameters from the equation-error start with their effect
-            held (`_reopen_rates`), refit them with `identify`'s global
-            method and their effect held when none is at the noise
-            (`_refit_globally`), and judge them again. Opt-in: on benchmark
-            seed cable_spring 0 it brings the spring and an unbalance (alike
-            near angle 0) both to the noise and the unbalance ranks first
-            (docs/diagnosis.md "Re-opened rate parameters").
-        joint: in round 1, restart the leading candidates (and the base)
-            from base and effect estimated together
-            (`isp_twin.identification.fit.joint_equation_error_estimate`),
-            refine them jointly, and refit the leading significant one
-            globally when it is not at the noise (docs/diagnosis.md "Joint
-            start"); False: the local refits alone (before issue 8's joint
-            start).
+        max_iter, cv_iter, side_source, seed, base_search, integration,
+            timing, reopen, joint: see "Options" in the module docstring.
 
     Raises:
         DataError: no runs, or a sample period that differs from the set's.
-        ParameterError: unknown axis or candidate.
+        ParameterError: unknown axis, candidate or side source.
+    """
+    data, x_start, remaining = _prepared(
+        _checked_inputs(runs, holdout, params, axis, candidates, side_source),
+        side_source,
+        seed,
+        integration,
+        timing,
+        base_search,
+        max_iter,
+        cv_iter,
+    )
+    x_file = data.ax.rate_params().to_vector()
+    before_held = _given_held(data, x_file)
+    analysis_before = analyse(
+        data.train, _one(predict(data.train, x_file[None], (), tuple(data.ax.effects)))
+    )
+    rounds = _rounds(data, x_start, remaining, max_rounds, joint, reopen, base_search)
+    return _final_diagnosis(data, params, axis, rounds, before_held, analysis_before)
+
+
+def _prepared(
+    checked, side_source, seed, integration, timing, base_search, max_iter, cv_iter
+) -> tuple[_Data, np.ndarray, list[str]]:
+    """(the data read out and stacked, the rounds' starting rate vector, the
+    candidates) from the checked inputs (`_checked_inputs`)."""
+    runs, holdout, ax, remaining = checked
+    base_id, timing = _read_out_timing(
+        runs, ax, side_source, seed, integration, timing, base_search
+    )
+    x_start = base_id.vector if base_id is not None else ax.rate_params().to_vector()
+    raw_runs = list(runs)
+    if side_source == "measured":
+        runs, holdout = _side_choice(runs, holdout, ax, timing, integration, x_start)
+    data = _stacked(
+        _Runs(raw_runs, runs, holdout),
+        ax,
+        side_source,
+        timing,
+        integration,
+        seed=seed,
+        max_iter=max_iter,
+        cv_iter=cv_iter,
+    )
+    return data, x_start, remaining
+
+
+def _rounds(data, x_current, remaining, max_rounds, joint, reopen, base_search) -> list:
+    """The rounds (`RoundResult`), each adding the effect it accepts to the model."""
+    rounds = []
+    fixed = tuple(data.ax.effects)
+    current: CandidateFit | None = None
+    for _ in range(max_rounds):
+        rnd = _round(data, x_current, current, remaining, fixed, joint, reopen, base_search)
+        rounds.append(rnd)
+        if rnd.selected == BASELINE:
+            break
+        current = rnd.model
+        fixed = current.effects()
+        x_current = current.rate_vector
+        remaining.remove(rnd.selected)
+        if not remaining:
+            break
+    return rounds
+
+
+@dataclass(frozen=True)
+class _Runs:
+    """The runs of one diagnosis before stacking.
+
+    Attributes:
+        raw: the training runs with the angle as read (split in two halves
+            when a single run has no hold-out): what the equation-error
+            starts and `identify` see.
+        train: the training runs the model is fitted to (the angle fused
+            where that fits better, `_side_choice`).
+        holdout: the held-out runs, read the same way (empty: cross-validation).
+    """
+
+    raw: list
+    train: list
+    holdout: list
+
+
+@dataclass(frozen=True, eq=False)
+class _Data:
+    """The data of one diagnosis, read out and stacked once, and how it is read.
+
+    Attributes:
+        runs: the runs (`_Runs`).
+        ax: the axis's given parameters.
+        train: the training runs stacked.
+        held: the held-out runs stacked, or None (cross-validation over the
+            training runs).
+        holdout_names: the held-out runs' names (or "cross-validation: ...").
+        side_source: the side source (`FIXED_SIDE`).
+        timing: the data's read-out timing.
+        integration: how the model integrates a sample.
+        seed: seed of `identify`'s global search.
+        max_iter: Levenberg-Marquardt iterations per fit.
+        cv_iter: iterations per cross-validation fold.
+    """
+
+    runs: _Runs
+    ax: AxisParams
+    train: RunStack
+    held: RunStack | None
+    holdout_names: tuple[str, ...]
+    side_source: str
+    timing: Timing
+    integration: Integration
+    seed: int
+    max_iter: int
+    cv_iter: int
+
+    @property
+    def fixed_side(self) -> int | None:
+        """The side the side source fixes (None: read from the angle)."""
+        return FIXED_SIDE[self.side_source]
+
+    def held_residuals(self, fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
+        """Held-out residuals per run of each fit (cross-validated without hold-out)."""
+        if self.held is not None:
+            return holdout_residuals(self.held, fits)
+        return _cv_residuals(
+            self.runs.train,
+            fits,
+            self.cv_iter,
+            self.fixed_side,
+            self.timing.gyro_average,
+            self.integration,
+        )
+
+
+def _checked_inputs(runs, holdout, params, axis, candidates, side_source):
+    """The inputs checked: (training runs, held-out runs, the axis, the candidates).
+
+    A single training run without hold-out is split in two halves (`split_in_time`).
     """
     runs = list(runs)
     holdout = list(holdout)
     sides = FIXED_SIDE
-    if side not in sides:
+    if side_source not in sides:
         raise ParameterError(
-            f"diagnose: side '{side}'{nearest(side, sides)}; allowed: {', '.join(sides)}"
+            f"diagnose: side '{side_source}'{nearest(side_source, sides)}; "
+            f"allowed: {', '.join(sides)}"
         )
-    fixed_side = sides[side]
-
     if not runs:
         raise DataError("diagnose: no data sets given")
     ax: AxisParams = params.axis(axis)
@@ -432,233 +579,382 @@ def diagnose(
         effect_class(c, "candidate effect")
     if not holdout and len(runs) == 1:
         runs = list(split_in_time(runs[0]))
-    base_id = None
-    given_timing = timing
-    timing = Timing() if timing is None else timing
-    raw_runs = list(runs)
-    m = integration.substeps
+    return runs, holdout, ax, list(candidates)
+
+
+def _read_out_timing(
+    runs, ax, side_source, seed, integration, timing, base_search
+) -> tuple[IdentificationResult | None, Timing]:
+    """The base model's global identification (`base_search`, else None) and
+    the data's read-out timing: the given one, the identification's, or the
+    best fit at the file's parameters (side source ``measured``)."""
     if base_search:
         base_id = identify(
             runs,
             ax,
-            IdSettings(side_source=side, seed=seed, integration=integration, timing=given_timing),
+            IdSettings(side_source=side_source, seed=seed, integration=integration, timing=timing),
         )
-        timing = base_id.timing
-    elif side == "measured" and given_timing is None:
+        return base_id, base_id.timing
+    if side_source == "measured" and timing is None:
         # The data's read-out timing (what a gyro sample means) at the file's
         # parameters, as `identify` chooses it: a gyro averaging over the
         # sample read as a point value leaves a fast axis far from the noise.
         x_file_rate = ax.rate_params()
         costs = {
-            t: float(rmse(x_file_rate, runs, side, 0.1, tuple(ax.effects), t, integration))
+            t: float(rmse(x_file_rate, runs, side_source, 0.1, tuple(ax.effects), t, integration))
             for t in TIMINGS
         }
-        timing = min(costs, key=costs.get)
-    if side == "measured":
-        # The half-plane and the angle-dependent effects see the fused angle
-        # (resolver quantization steps would flip the regime back and forth
-        # at angle 0), read at the data's timing, unless the raw angle fits
-        # the starting model better: a gyro scale or bias error (the
-        # sensor_bias effect) enters the integrated rate the fusion trusts
-        # at short times and moves its zero crossings.
-        fused = [replace(r, angle=side_angle(r, "measured", timing.side_shift / m)) for r in runs]
-        x_start = base_id.vector if base_id is not None else ax.rate_params().to_vector()
-        costs = [
-            float(
-                np.sum(
-                    _simulation_residuals(
-                        _stack_runs(
-                            rs,
-                            side=None,
-                            gyro_average=timing.gyro_average,
-                            integration=integration,
-                        ),
-                        x_start,
-                        fixed=tuple(ax.effects),
-                    )
-                    ** 2
-                )
-            )
-            for rs in (fused, runs)
-        ]
-        if costs[0] <= costs[1]:
-            runs = fused
-            holdout = [
-                replace(r, angle=side_angle(r, "measured", timing.side_shift / m)) for r in holdout
-            ]
+        return None, min(costs, key=costs.get)
+    return None, Timing() if timing is None else timing
 
-    def stack_runs(rs):
+
+def _side_choice(runs, holdout, ax, timing, integration, x_start) -> tuple[list, list]:
+    """The runs with the fused angle when it fits the starting model at least
+    as well as the raw angle, else as given (side source ``measured``)."""
+    # The half-plane and the angle-dependent effects see the fused angle
+    # (resolver quantization steps would flip the regime back and forth
+    # at angle 0), read at the data's timing, unless the raw angle fits
+    # the starting model better: a gyro scale or bias error (the
+    # sensor_bias effect) enters the integrated rate the fusion trusts
+    # at short times and moves its zero crossings.
+    m = integration.substeps
+    fused = [replace(r, angle=side_angle(r, "measured", timing.side_shift / m)) for r in runs]
+    costs = [
+        float(
+            np.sum(
+                _simulation_residuals(
+                    _stack_runs(
+                        rs,
+                        side=None,
+                        gyro_average=timing.gyro_average,
+                        integration=integration,
+                    ),
+                    x_start,
+                    fixed=tuple(ax.effects),
+                )
+                ** 2
+            )
+        )
+        for rs in (fused, runs)
+    ]
+    if costs[0] <= costs[1]:
+        held = [replace(r, angle=side_angle(r, "measured", timing.side_shift / m)) for r in holdout]
+        return fused, held
+    return runs, holdout
+
+
+def _stacked(
+    runs: _Runs,
+    ax: AxisParams,
+    side_source: str,
+    timing: Timing,
+    integration: Integration,
+    seed: int,
+    max_iter: int,
+    cv_iter: int,
+) -> _Data:
+    """The training and held-out runs stacked at the side and read-out chosen."""
+
+    def stack(rs):
         return _stack_runs(
-            rs, side=fixed_side, gyro_average=timing.gyro_average, integration=integration
+            rs,
+            side=FIXED_SIDE[side_source],
+            gyro_average=timing.gyro_average,
+            integration=integration,
         )
 
-    train = stack_runs(runs)
-    held = stack_runs(holdout) if holdout else None
+    train = stack(runs.train)
+    held = stack(runs.holdout) if runs.holdout else None
     holdout_names = (
-        tuple(r.name for r in holdout)
-        if holdout
+        tuple(r.name for r in runs.holdout)
+        if runs.holdout
         else ("cross-validation: " + ", ".join(train.names),)
     )
+    return _Data(
+        runs,
+        ax,
+        train,
+        held,
+        holdout_names,
+        side_source,
+        timing,
+        integration,
+        seed,
+        max_iter,
+        cv_iter,
+    )
 
-    def held_residuals(fits: Sequence[CandidateFit]) -> list[list[np.ndarray]]:
-        if held is not None:
-            return holdout_residuals(held, fits)
-        return _cv_residuals(runs, fits, cv_iter, fixed_side, timing.gyro_average, integration)
 
-    x_file = ax.rate_params().to_vector()
-    fixed = tuple(ax.effects)
+def _given_held(data: _Data, x_file: np.ndarray) -> list[np.ndarray]:
+    """Held-out residuals per run of the given model, unchanged (no fit)."""
     given = CandidateFit(
         name=BASELINE,
         params={},
         ci95={},
         rate_vector=x_file,
-        rate_ci95=np.full(20, np.nan),
+        rate_ci95=np.full(RATE_LAYOUT.size, np.nan),
         sse=np.nan,
         n_samples=1,
-        n_params=20,
+        n_params=RATE_LAYOUT.size,
         bic=np.nan,
         status=None,
-        fixed=fixed,
+        fixed=tuple(data.ax.effects),
     )
-    before_held = (
-        holdout_residual(held, given) if held is not None else holdout_residual(train, given)
+    return holdout_residual(data.held if data.held is not None else data.train, given)
+
+
+@dataclass(frozen=True, eq=False)
+class _RoundState:
+    """What the stages of one round share.
+
+    The restarts (`_joint_stage`, `_reopen_stage`) replace entries of `fits`
+    and `held_of` in place when a restart fits better.
+
+    Attributes:
+        base: the round's base model (refitted without a new effect).
+        fits: candidate name -> its refit.
+        held_of: candidate name -> its held-out residuals per run [rad/s].
+        base_held: the base model's held-out residuals per run [rad/s].
+        floor: noise estimate from `base_held` [rad/s].
+        failed: candidates whose refit ended above the base (set to the base).
+    """
+
+    base: CandidateFit
+    fits: dict
+    held_of: dict
+    base_held: list
+    floor: float
+    failed: frozenset
+
+    def judge(self, name: str) -> Verdict:
+        """One candidate judged against the base, overruled where `_checked` says."""
+        fit = self.fits[name]
+        v = judge(name, self.base_held, self.held_of[name], self.base.bic, fit.bic, self.floor)
+        return _checked(v, fit, name in self.failed)
+
+    def judged_again(self, verdicts, again) -> list[Verdict]:
+        """The verdicts with the candidates in `again` (refitted since) judged
+        again, best held-out first."""
+        redone = [
+            _checked(
+                judge(
+                    v.name,
+                    self.base_held,
+                    self.held_of[v.name],
+                    self.base.bic,
+                    self.fits[v.name].bic,
+                    self.floor,
+                ),
+                self.fits[v.name],
+                False,
+            )
+            if v.name in again
+            else v
+            for v in verdicts
+        ]
+        return sorted(redone, key=lambda v: v.holdout_rmse)
+
+    def update(self, data: _Data, refits: dict[str, CandidateFit]) -> None:
+        """`refits` written into `fits`, their held-out residuals into `held_of`."""
+        names = list(refits)
+        for n, h in zip(names, data.held_residuals([refits[n] for n in names])):
+            self.fits[n] = refits[n]
+            self.held_of[n] = h
+
+
+def _round(data, x_current, current, remaining, fixed, joint, reopen, base_search) -> RoundResult:
+    """One round: candidates refitted -> held-out residuals -> verdicts ->
+    joint restarts (round 1) -> re-opened rates -> acceptance."""
+    train = data.train
+    resp = _one(predict(train, x_current[None], (), fixed))
+    context = residual_context(train, resp, RATE_LAYOUT.column(x_current, "pole"))
+    names = remaining + ([BASELINE] if current is None else [])
+    fits = fit_candidates(train, x_current, names, fixed, context=context, max_iter=data.max_iter)
+    base = fits.pop(BASELINE) if current is None else current
+    st, verdicts = _judged(data, base, fits, remaining)
+    if joint and current is None:
+        verdicts = _joint_stage(data, st, verdicts, remaining, x_current, fixed)
+    if reopen:
+        verdicts = _reopen_stage(data, st, verdicts)
+    return _acceptance(data, st, verdicts, base_search)
+
+
+def _judged(data, base, fits, remaining) -> tuple[_RoundState, list[Verdict]]:
+    """Failed refits replaced, held-out residuals, floor, verdicts (best first)."""
+    # A model that contains the base model cannot fit the training runs
+    # worse: a candidate that ends above the base is an optimizer
+    # failure, and is replaced by the base with the effect switched off.
+    failed = set()
+    for n in remaining:
+        if fits[n].sse > base.sse:
+            fits[n] = _as_base(fits[n], base)
+            failed.add(n)
+    held_all = data.held_residuals([base] + [fits[n] for n in remaining])
+    base_held = held_all[0]
+    st = _RoundState(
+        base,
+        fits,
+        dict(zip(remaining, held_all[1:])),
+        base_held,
+        noise_floor(base_held),
+        frozenset(failed),
     )
-    rmse_before = _rms(before_held)
-    analysis_before = analyse(train, _one(predict(train, x_file[None], (), fixed)))
+    verdicts = [st.judge(n) for n in remaining]
+    verdicts.sort(key=lambda vd: vd.holdout_rmse)
+    return st, verdicts
 
-    rounds = []
-    x_current = base_id.vector if base_id is not None else x_file
-    current: CandidateFit | None = None
-    remaining = list(candidates)
-    for _ in range(max_rounds):
-        resp = _one(predict(train, x_current[None], (), fixed))
-        context = residual_context(train, resp, x_current.reshape(4, 5)[:, 0])
-        names = remaining + ([BASELINE] if current is None else [])
-        fits = fit_candidates(train, x_current, names, fixed, context=context, max_iter=max_iter)
-        base = fits.pop(BASELINE) if current is None else current
 
-        def judged(base, fits):
-            """Failed refits replaced, held-out residuals, floor, verdicts (best first)."""
-            # A model that contains the base model cannot fit the training runs
-            # worse: a candidate that ends above the base is an optimizer
-            # failure, and is replaced by the base with the effect switched off.
-            failed = set()
-            for n in remaining:
-                if fits[n].sse > base.sse:
-                    fits[n] = _as_base(fits[n], base)
-                    failed.add(n)
-            held_all = held_residuals([base] + [fits[n] for n in remaining])
-            base_held = held_all[0]
-            floor = noise_floor(base_held)
-            verdicts = [
-                _checked(judge(n, base_held, h, base.bic, fits[n].bic, floor), fits[n], n in failed)
-                for n, h in zip(remaining, held_all[1:])
-            ]
-            verdicts.sort(key=lambda vd: vd.holdout_rmse)
-            return failed, dict(zip(remaining, held_all[1:])), base_held, floor, verdicts
+def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdict]:
+    """Round 1: the leaders restarted from base and effect estimated together."""
+    # Base and effect estimated together for the leaders (by local held-out
+    # error and by the joint equation-error gain), the base restarted the
+    # same way (`_joint_restarts`); then judged again.
+    starts = _joint_starts(data.runs.raw, data.side_source, st.fits, remaining, x_current)
+    lead = _leaders(verdicts, st.failed, starts, JOINT_TOP)
+    again = _joint_restarts(
+        data.train, {n: starts[n] for n in lead + [BASELINE] if n in starts}, fixed
+    )
+    new_base = again.pop(BASELINE, None)
+    # A restart is kept if it fits better than the candidate's local
+    # refit and has a lower training BIC than the base restarted the
+    # same way: a restart may find a better basin for the rate
+    # parameters, which is no evidence for the effect. (Replacing
+    # the base by its restart instead made the synthetic dead zone
+    # of tests/test_diagnosis_detection.py vanish into the friction
+    # levels: docs/diagnosis.md "Joint start".)
+    better = {
+        n: f
+        for n, f in again.items()
+        if f.sse < st.fits[n].sse and (new_base is None or f.bic < new_base.bic)
+    }
+    if better:
+        st.update(data, better)
+        verdicts = st.judged_again(verdicts, better)
+    top = [v.name for v in verdicts if v.significant][:1]
+    if top and top[0] in better and _rms(st.held_of[top[0]]) > CONVERGED_RATIO * st.floor:
+        # Not at the noise yet: the leader's rate parameters identified
+        # again with `identify`'s global method, its effect (now
+        # estimated apart from the distorted base) held, then rate and
+        # effect polished together; kept if the training cost drops.
+        n = top[0]
+        g = _refit_globally(data, st.fits[n])
+        if g.sse < st.fits[n].sse:
+            st.update(data, {n: g})
+            verdicts = st.judged_again(verdicts, {n: g})
+    return verdicts
 
-        failed, held_of, base_held, floor, verdicts = judged(base, fits)
-        if joint and current is None:
-            # Base and effect estimated together for the leaders (by local
-            # held-out error and by the joint equation-error gain), the base
-            # restarted the same way (`_joint_restarts`); then judged again.
-            starts = _joint_starts(raw_runs, side, fits, remaining, x_current)
-            lead = _leaders(verdicts, failed, starts, JOINT_TOP)
-            again = _joint_restarts(
-                train, {n: starts[n] for n in lead + [BASELINE] if n in starts}, fixed
-            )
-            new_base = again.pop(BASELINE, None)
-            # A restart is kept if it fits better than the candidate's local
-            # refit and has a lower training BIC than the base restarted the
-            # same way: a restart may find a better basin for the rate
-            # parameters, which is no evidence for the effect. (Replacing
-            # the base by its restart instead made the synthetic dead zone
-            # of tests/test_diagnosis_detection.py vanish into the friction
-            # levels: docs/diagnosis.md "Joint start".)
-            better = {
-                n: f
-                for n, f in again.items()
-                if f.sse < fits[n].sse and (new_base is None or f.bic < new_base.bic)
-            }
-            fits.update(better)
-            if better:
-                names_j = list(better)
-                for n, h in zip(names_j, held_residuals([better[n] for n in names_j])):
-                    held_of[n] = h
-                verdicts = _judged_again(
-                    verdicts, better, fits, held_of, base_held, base.bic, floor
-                )
-            top = [v.name for v in verdicts if v.significant][:1]
-            if top and top[0] in better and _rms(held_of[top[0]]) > CONVERGED_RATIO * floor:
-                # Not at the noise yet: the leader's rate parameters identified
-                # again with `identify`'s global method, its effect (now
-                # estimated apart from the distorted base) held, then rate and
-                # effect polished together; kept if the training cost drops.
-                n = top[0]
-                g = _refit_globally(raw_runs, ax, fits[n], train, seed, side, timing, max_iter)
-                if g.sse < fits[n].sse:
-                    fits[n] = g
-                    held_of[n] = held_residuals([g])[0]
-                    verdicts = _judged_again(
-                        verdicts, {n: g}, fits, held_of, base_held, base.bic, floor
-                    )
-        lead = [v.name for v in verdicts if v.significant][:REOPEN_TOP] if reopen else []
-        reopened = {}
-        for n in lead:
-            again = _reopen_rates(raw_runs, side, fits[n], train, max_iter)
-            if again.sse < fits[n].sse:
-                reopened[n] = again
-        if reopened:
-            names_r = list(reopened)
-            for n, h in zip(names_r, held_residuals([reopened[n] for n in names_r])):
-                fits[n] = reopened[n]
-                held_of[n] = h
-            verdicts = _judged_again(verdicts, reopened, fits, held_of, base_held, base.bic, floor)
-            if not any(
-                v.significant and _rms(held_of[v.name]) <= CONVERGED_RATIO * floor for v in verdicts
-            ):
-                # Still above the noise: the rate parameters of the re-opened
-                # leaders identified again with `identify`'s global method and
-                # their effect held (their effect is now estimated apart from
-                # the distorted base), kept if the training cost drops.
-                for n in names_r:
-                    g = _refit_globally(raw_runs, ax, fits[n], train, seed, side, timing, max_iter)
-                    if g.sse < fits[n].sse:
-                        fits[n] = g
-                        held_of[n] = held_residuals([g])[0]
-                        reopened[n] = g
-                verdicts = _judged_again(
-                    verdicts, reopened, fits, held_of, base_held, base.bic, floor
-                )
-        best = select(verdicts, floor)
-        selected = best.name if best else BASELINE
-        after_held = held_of[selected] if best else base_held
-        if best is not None and base_search:
-            # The winner refitted with the base model's global method, its
-            # effect held, then jointly polished: the base it was selected
-            # against had absorbed part of the effect into the friction levels.
-            again = _refit_globally(
-                raw_runs, ax, fits[selected], train, seed, side, timing, max_iter
-            )
-            if again.sse < fits[selected].sse:
-                fits[selected] = again
-                after_held = held_residuals([again])[0]
-        rounds.append(
-            RoundResult(
-                base, fits, tuple(verdicts), selected, tuple(base_held), tuple(after_held), floor
-            )
+
+def _reopen_stage(data, st, verdicts) -> list[Verdict]:
+    """The leading significant candidates' rate parameters re-opened (`reopen`)."""
+    lead = [v.name for v in verdicts if v.significant][:REOPEN_TOP]
+    reopened = {}
+    for n in lead:
+        again = _reopen_rates(
+            data.runs.raw, data.side_source, st.fits[n], data.train, data.max_iter
         )
-        if best is None:
-            break
-        current = fits[selected]
-        fixed = current.effects()
-        x_current = current.rate_vector
-        remaining.remove(selected)
-        if not remaining:
-            break
+        if again.sse < st.fits[n].sse:
+            reopened[n] = again
+    if not reopened:
+        return verdicts
+    st.update(data, reopened)
+    verdicts = st.judged_again(verdicts, reopened)
+    if not any(
+        v.significant and _rms(st.held_of[v.name]) <= CONVERGED_RATIO * st.floor for v in verdicts
+    ):
+        # Still above the noise: the rate parameters of the re-opened
+        # leaders identified again with `identify`'s global method and
+        # their effect held (their effect is now estimated apart from
+        # the distorted base), kept if the training cost drops.
+        for n in list(reopened):
+            g = _refit_globally(data, st.fits[n])
+            if g.sse < st.fits[n].sse:
+                st.update(data, {n: g})
+                reopened[n] = g
+        verdicts = st.judged_again(verdicts, reopened)
+    return verdicts
 
+
+def _acceptance(data, st, verdicts, base_search) -> RoundResult:
+    """The round's result: the best significant candidate accepted (`select`), or none."""
+    best = select(verdicts, st.floor)
+    selected = best.name if best else BASELINE
+    after_held = st.held_of[selected] if best else st.base_held
+    if best is not None and base_search:
+        # The winner refitted with the base model's global method, its
+        # effect held, then jointly polished: the base it was selected
+        # against had absorbed part of the effect into the friction levels.
+        again = _refit_globally(data, st.fits[selected])
+        if again.sse < st.fits[selected].sse:
+            st.fits[selected] = again
+            after_held = data.held_residuals([again])[0]
+    return RoundResult(
+        st.base,
+        st.fits,
+        tuple(verdicts),
+        selected,
+        tuple(st.base_held),
+        tuple(after_held),
+        st.floor,
+    )
+
+
+def _final_diagnosis(data, params, axis, rounds, before_held, analysis_before) -> Diagnosis:
+    """The final model: tentative effects set aside, the plain refit judged
+    against the given parameters, the parameter set updated."""
+    rounds, accepted, tentative = _set_aside_tentative(rounds)
+    equivalent = _equivalent(rounds[0]) if accepted else ()
+    train, ax = data.train, data.ax
+    x_file, given_fixed = ax.rate_params().to_vector(), tuple(ax.effects)
+    m = train.n_samples
+    given_res = train.flat(train.omega - _one(predict(train, x_file[None], (), given_fixed)).omega)
+    bic_given = float(
+        m * np.log(max(given_res @ given_res, 1e-300) / m) + RATE_LAYOUT.size * np.log(m)
+    )
+    # Without a new effect, the plain re-identification is kept if it passes
+    # the same rule against the given parameters.
+    first = rounds[0]
+    refit = judge(
+        "refit", before_held, first.holdout_before, bic_given, first.baseline.bic, first.noise_floor
+    )
+    if accepted:
+        final, after_held = accepted[-1].model, accepted[-1].holdout_after
+    elif refit.significant:
+        final, after_held = first.baseline, first.holdout_before
+    else:
+        final, after_held = None, before_held
+    if final is None:
+        params_out = params
+        final_x, final_fixed = x_file, given_fixed
+    else:
+        final_x, final_fixed = final.rate_vector, final.effects()
+        params_out = params.with_axis(axis, _updated_axis(ax, final))
+    final_resp = _one(predict(train, final_x[None], (), final_fixed))
+    res_before = train.omega - _one(predict(train, x_file[None], (), given_fixed)).omega
+    return Diagnosis(
+        axis=axis,
+        rounds=tuple(rounds),
+        rmse_before=_rms(before_held),
+        rmse_after=_rms(after_held),
+        noise_floor=first.noise_floor,
+        params_out=params_out,
+        analysis_before=analysis_before,
+        analysis_after=analyse(train, final_resp),
+        residual_before=tuple(res_before),
+        residual_after=tuple(train.omega - final_resp.omega),
+        holdout_names=data.holdout_names,
+        refit=refit,
+        stack=train,
+        tentative=tentative,
+        timing=data.timing,
+        integration=data.integration,
+        equivalent=equivalent,
+    )
+
+
+def _set_aside_tentative(rounds) -> tuple[list, list, tuple[str, ...]]:
+    """(rounds, accepted rounds, tentative effects): the accepted effects set
+    aside as tentative when the model with them is still not at the noise."""
     accepted = [r for r in rounds if r.selected != BASELINE]
-    tentative: tuple[str, ...] = ()
     if accepted:
         ratio = _rms(accepted[-1].holdout_after) / rounds[0].noise_floor
         if not ratio <= CONVERGED_RATIO:
@@ -667,63 +963,11 @@ def diagnose(
             # an explanation; reported as tentative only.
             tentative = tuple(r.selected for r in accepted)
             rounds = [replace(r, selected=BASELINE, holdout_after=r.holdout_before) for r in rounds]
-            accepted = []
-    equivalent = _equivalent(rounds[0]) if accepted else ()
-    m = train.n_samples
-    given_res = train.flat(
-        train.omega - _one(predict(train, x_file[None], (), tuple(ax.effects))).omega
-    )
-    bic_given = float(m * np.log(max(given_res @ given_res, 1e-300) / m) + 20 * np.log(m))
-    # Without a new effect, the plain re-identification is kept if it passes
-    # the same rule against the given parameters.
-    refit = judge(
-        "refit",
-        before_held,
-        rounds[0].holdout_before,
-        bic_given,
-        rounds[0].baseline.bic,
-        rounds[0].noise_floor,
-    )
-    if accepted:
-        final = accepted[-1].model
-        after_held = accepted[-1].holdout_after
-    elif refit.significant:
-        final = rounds[0].baseline
-        after_held = rounds[0].holdout_before
-    else:
-        final = None
-        after_held = before_held
-    if final is None:
-        params_out = params
-        final_x, final_fixed = x_file, tuple(ax.effects)
-    else:
-        final_x, final_fixed = final.rate_vector, final.effects()
-        params_out = params.with_axis(axis, _updated_axis(ax, final))
-    analysis_after = analyse(train, _one(predict(train, final_x[None], (), final_fixed)))
-    res_before = train.omega - _one(predict(train, x_file[None], (), tuple(ax.effects))).omega
-    res_after = train.omega - _one(predict(train, final_x[None], (), final_fixed)).omega
-    return Diagnosis(
-        axis=axis,
-        rounds=tuple(rounds),
-        rmse_before=rmse_before,
-        rmse_after=_rms(after_held),
-        noise_floor=rounds[0].noise_floor,
-        params_out=params_out,
-        analysis_before=analysis_before,
-        analysis_after=analysis_after,
-        residual_before=tuple(res_before),
-        residual_after=tuple(res_after),
-        holdout_names=holdout_names,
-        refit=refit,
-        stack=train,
-        tentative=tentative,
-        timing=timing,
-        integration=integration,
-        equivalent=equivalent,
-    )
+            return rounds, [], tentative
+    return rounds, accepted, ()
 
 
-def _joint_starts(raw_runs, side, fits, names, x_base) -> dict[str, JointEstimate]:
+def _joint_starts(raw_runs, side_source, fits, names, x_base) -> dict[str, JointEstimate]:
     """Base and effect estimated together for each candidate that has a joint
     form (`joint_equation_error_estimate`; shape parameters such as the
     cogging period from the candidate's local fit), and the base alone
@@ -732,12 +976,12 @@ def _joint_starts(raw_runs, side, fits, names, x_base) -> dict[str, JointEstimat
     prior = RateParams.from_vector(x_base)
     out = {
         n: joint_equation_error_estimate(
-            raw_runs, prior, EffectSpec(n, dict(fits[n].params)), side, effects=fixed
+            raw_runs, prior, EffectSpec(n, dict(fits[n].params)), side_source, effects=fixed
         )
         for n in names
         if n in JOINT_FORMS
     }
-    base = equation_error_estimate(raw_runs, prior, side, effects=fixed)
+    base = equation_error_estimate(raw_runs, prior, side_source, effects=fixed)
     out[BASELINE] = JointEstimate(base, None, float("nan"), float("nan"))
     return out
 
@@ -801,7 +1045,9 @@ def _joint_restarts(train, starts, fixed) -> dict[str, CandidateFit]:
     )
 
 
-def _reopen_rates(raw_runs, side, fit, train, max_iter, cycles=REOPEN_CYCLES) -> CandidateFit:
+def _reopen_rates(
+    raw_runs, side_source, fit, train, max_iter, cycles=REOPEN_CYCLES
+) -> CandidateFit:
     """`fit` refitted from the equation-error start of the rate parameters
     with its effects held (`equation_error_estimate`), effect and rate
     parameters then refined together; `cycles` times, each from the last
@@ -819,7 +1065,7 @@ def _reopen_rates(raw_runs, side, fit, train, max_iter, cycles=REOPEN_CYCLES) ->
             eff = {p: float(np.clip(v, *cls.bounds[p])) for p, v in eff.items()}
             spec = best.fixed + (EffectSpec(fit.name, eff),)
             x = equation_error_estimate(
-                raw_runs, RateParams.from_vector(best.rate_vector), side, effects=spec
+                raw_runs, RateParams.from_vector(best.rate_vector), side_source, effects=spec
             ).to_vector()
             trials.append((x, eff))
         res = residuals_many(
@@ -842,22 +1088,27 @@ def _reopen_rates(raw_runs, side, fit, train, max_iter, cycles=REOPEN_CYCLES) ->
     return best
 
 
-def _refit_globally(raw_runs, ax, fit, train, seed, side, timing, max_iter) -> CandidateFit:
+def _refit_globally(data: _Data, fit: CandidateFit) -> CandidateFit:
     """`fit`'s rate parameters identified again with its effects held (`identify`),
     then rate and effect parameters polished together."""
-    held_ax = replace(ax, effects=fit.effects())
+    held_ax = replace(data.ax, effects=fit.effects())
     again = identify(
-        raw_runs,
+        data.runs.raw,
         held_ax,
-        IdSettings(side_source=side, seed=seed, timing=timing, integration=train.integration),
+        IdSettings(
+            side_source=data.side_source,
+            seed=data.seed,
+            timing=data.timing,
+            integration=data.train.integration,
+        ),
     )
     return fit_candidates(
-        train,
+        data.train,
         again.vector,
         [fit.name],
         fit.fixed,
         starts={fit.name: dict(fit.params)},
-        max_iter=max_iter,
+        max_iter=data.max_iter,
     )[fit.name]
 
 
