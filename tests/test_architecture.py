@@ -374,15 +374,16 @@ LONG_FUNCTIONS = {
     # checked bit for bit against a plain Python form.
     "isp_twin/experiments/closed_loop_kernel.py::_advance",
     "isp_twin/model/substep_model.py::_advance_group",
-    "isp_twin/model/substep_model.py::simulate_substeps",
     # The fast model's batched loop over samples (Eq. 6): the hot path of
     # identification, one friction-law evaluation per sample (issue 11, item 1).
     "isp_twin/model/axis_model.py::simulate",
     # The reference simulator's integrator: one loop over samples, sub-steps
     # and events whose closures share its local state (docs/reference_simulator.md).
     "isp_twin/reference/axis.py::simulate",
-    # Identification reports and diagnosis: being rewritten in stages by their
-    # own issue; split there, not here.
+    # Report writers and the diagnosis's numerical core: a report is a list of
+    # sections and lm_steps one generator (its yields are the lockstep
+    # protocol); they are split with issue 8's one estimation engine (one
+    # interval, one BIC, one report path for identify and diagnose).
     "isp_twin/identification/report.py::write_report",
     "isp_twin/identification/report.py::result_json",
     "isp_twin/diagnosis/fit.py::lm_steps",

@@ -452,29 +452,36 @@ def simulate_substeps(
         when the two differ.
     """
     _ensure_current_law()
-    single = np.ndim(params.pole) == 1
     u = np.asarray(u, dtype=float)
-    if u.ndim == 2:
-        single = False
+    single = np.ndim(params.pole) == 1 and u.ndim < 2
     n = u.shape[-1]
-    sizes = [np.atleast_2d(np.asarray(x)).shape[0] for x in (params.pole, params.gain)]
-    n_rows = max(
-        *sizes,
-        u.shape[0] if u.ndim == 2 else 1,
-        np.size(omega0),
-        np.size(angle0),
-        np.atleast_2d(angle_measured).shape[0] if angle_measured is not None else 1,
-    )
+    n_rows = _batch_rows(params, u, omega0, angle0, angle_measured)
     m = int(integration.substeps)
     table = _substep_table(params, n_rows, m, integration.exact_effect_hold)
-    u_rows = np.ascontiguousarray(np.broadcast_to(u, (n_rows, n)), dtype=float)
-    if angle_measured is not None:
-        side_y = np.ascontiguousarray(
-            np.broadcast_to(np.asarray(angle_measured, dtype=float), (n_rows, n))
-        )
-    else:
-        side_y = np.zeros((1, 1))
+    u_rows, side_y = _input_rows(u, angle_measured, n_rows, n)
     fixed = -1 if check_side(side) is None else side
+    outputs = _state_and_outputs(n_rows, n, omega0, angle0)
+    _, _, point, reading, angle, regime = outputs
+    for e in effects:
+        e.reset()
+    args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
+    use_side = angle_measured is not None
+    commands, torques, u_eff, extra = _effects_before_the_run(effects, u_rows, side_y, use_side, dt)
+    if not (commands or torques):
+        _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, *outputs)
+    else:
+        kernel_args = (table, side_y, use_side, fixed, args, outputs)
+        _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt)
+    out = _measured(reading if gyro_average else point, effects)
+    true = None if out is point else point
+    if single:
+        return AxisResponse(out[0], angle[0], regime[0], None if true is None else true[0])
+    return AxisResponse(out, angle, regime, true)
+
+
+def _state_and_outputs(n_rows: int, n: int, omega0, angle0) -> tuple[np.ndarray, ...]:
+    """Rate and angle state (rows,), and the point rate, reading, angle and
+    regime outputs (rows, N), sample 0 set."""
     w = np.broadcast_to(np.asarray(omega0, dtype=float), (n_rows,)).copy()
     y = np.broadcast_to(np.asarray(angle0, dtype=float), (n_rows,)).copy()
     point = np.empty((n_rows, n))
@@ -484,13 +491,61 @@ def simulate_substeps(
     point[:, 0] = w
     reading[:, 0] = w
     angle[:, 0] = y
+    return w, y, point, reading, angle, regime
+
+
+def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt) -> None:
+    """Effects that need the model's own state: evaluated per sample, their
+    command and acceleration held over the sub-steps of one kernel call each."""
+    table, side_y, use_side, fixed, args, outputs = kernel_args
+    w, y = outputs[0], outputs[1]
+    n_rows, n = u_rows.shape
+    if commands:
+        u_eff = u_rows.copy()
+    for k in range(1, n):
+        if commands:
+            uk = u_rows[:, k - 1]
+            for e in commands:
+                uk = e.command(uk)
+            u_eff[:, k - 1] = uk
+        if torques:
+            at = side_y[:, k - 1] if use_side else y
+            extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
+        _advance_rows(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args,
+                      *outputs, 0, n_rows)  # fmt: skip
+
+
+def _input_rows(u, angle_measured, n_rows: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The command and the half-plane angle, (rows, N) each, contiguous (a
+    (1, 1) placeholder angle when the model's own angle chooses)."""
+    u_rows = np.ascontiguousarray(np.broadcast_to(u, (n_rows, n)), dtype=float)
+    if angle_measured is None:
+        return u_rows, np.zeros((1, 1))
+    side_y = np.broadcast_to(np.asarray(angle_measured, dtype=float), (n_rows, n))
+    return u_rows, np.ascontiguousarray(side_y)
+
+
+def _batch_rows(params: RateParams, u, omega0, angle0, angle_measured) -> int:
+    """Rows of the batch: the largest of the arguments' leading sizes."""
+    sizes = [np.atleast_2d(np.asarray(x)).shape[0] for x in (params.pole, params.gain)]
+    return max(
+        *sizes,
+        u.shape[0] if u.ndim == 2 else 1,
+        np.size(omega0),
+        np.size(angle0),
+        np.atleast_2d(angle_measured).shape[0] if angle_measured is not None else 1,
+    )
+
+
+def _effects_before_the_run(effects, u_rows, side_y, use_side, dt):
+    """Evaluate what can be evaluated over the whole run before the kernel.
+
+    Returns (command effects, torque effects) still to run per sample, the
+    command [digits] and the extra drive [rate per sample], (rows, N) each.
+    """
+    n_rows, n = u_rows.shape
     commands = [e for e in effects if type(e).command is not Effect.command]
     torques = [e for e in effects if type(e).acceleration is not Effect.acceleration]
-    sensors = [e for e in effects if type(e).measure is not Effect.measure]
-    for e in effects:
-        e.reset()
-    args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
-    use_side = angle_measured is not None
     extra = np.zeros((n_rows, n))
     u_eff = u_rows
     if commands and not set(commands) & set(torques):
@@ -510,34 +565,18 @@ def simulate_substeps(
             at = side_y[:, k - 1]
             extra[:, k - 1] = sum(e.acceleration(at, None) for e in torques) * dt
         torques = []
-    if not (commands or torques):
-        _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, w, y, point,
-                 reading, angle, regime)  # fmt: skip
-    else:
-        # Effects per sample: their command and acceleration held over the sub-steps.
-        if commands:
-            u_eff = u_rows.copy()
-        for k in range(1, n):
-            if commands:
-                uk = u_rows[:, k - 1]
-                for e in commands:
-                    uk = e.command(uk)
-                u_eff[:, k - 1] = uk
-            if torques:
-                at = side_y[:, k - 1] if use_side else y
-                extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
-            _advance_rows(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args, w, y,
-                          point, reading, angle, regime, 0, n_rows)  # fmt: skip
-    out = reading if gyro_average else point
-    if sensors:
-        measured = np.empty_like(out)
-        for k in range(n):
-            r = out[:, k]
-            for e in sensors:
-                r = e.measure(r)
-            measured[:, k] = r
-        out = measured
-    true = None if out is point else point
-    if single:
-        return AxisResponse(out[0], angle[0], regime[0], None if true is None else true[0])
-    return AxisResponse(out, angle, regime, true)
+    return commands, torques, u_eff, extra
+
+
+def _measured(out: np.ndarray, effects) -> np.ndarray:
+    """The reading through the effects' `measure` hooks (sensor errors), per sample."""
+    sensors = [e for e in effects if type(e).measure is not Effect.measure]
+    if not sensors:
+        return out
+    measured = np.empty_like(out)
+    for k in range(out.shape[1]):
+        r = out[:, k]
+        for e in sensors:
+            r = e.measure(r)
+        measured[:, k] = r
+    return measured
