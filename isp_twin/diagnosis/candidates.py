@@ -19,7 +19,7 @@ import numpy as np
 
 from isp_twin.diagnosis.fit import FitResult, FitStatus, lm_steps, solve_many
 from isp_twin.diagnosis.residual import ResidualContext, residual_context
-from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
+from isp_twin.diagnosis.simulation import RunStack, predict, predict_one, residuals_many
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec
 from isp_twin.model.rate_layout import CandidateLayout
@@ -188,13 +188,7 @@ def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> dict[str, d
     """The global step: every guess of every candidate in `need` simulated in
     one batch at the current rate parameters; each candidate's best guess."""
     if context is None:
-        resp = predict(stack, x_rate[None], (), fixed)
-        one = type(resp)(
-            *(
-                None if a is None else a[0]
-                for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
-            )
-        )
+        one = predict_one(stack, x_rate, fixed)
         context = residual_context(stack, one, RATE_LAYOUT.column(x_rate, "pole"))
     guesses = {}
     for n in need:

@@ -74,7 +74,7 @@ from isp_twin.diagnosis.candidates import (
 )
 from isp_twin.diagnosis.residual import ResidualAnalysis, analyse, noise_floor, residual_context
 from isp_twin.diagnosis.selection import MIN_GAIN, Verdict, judge, select
-from isp_twin.diagnosis.simulation import RunStack, predict, residuals_many
+from isp_twin.diagnosis.simulation import RunStack, predict_one, residuals_many
 from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.errors import DataError, ParameterError, nearest
@@ -430,11 +430,8 @@ def diagnose(
     )
     x_file = data.ax.rate_params().to_vector()
     before_held = _given_held(data, x_file)
-    analysis_before = analyse(
-        data.train, _one(predict(data.train, x_file[None], (), tuple(data.ax.effects)))
-    )
     rounds = _rounds(data, x_start, remaining, max_rounds, joint, reopen, base_search)
-    return _final_diagnosis(data, params, axis, rounds, before_held, analysis_before)
+    return _final_diagnosis(data, params, axis, rounds, before_held)
 
 
 def _prepared(
@@ -766,7 +763,7 @@ def _round(data, x_current, current, remaining, fixed, joint, reopen, base_searc
     """One round: candidates refitted -> held-out residuals -> verdicts ->
     joint restarts (round 1) -> re-opened rates -> acceptance."""
     train = data.train
-    resp = _one(predict(train, x_current[None], (), fixed))
+    resp = predict_one(train, x_current, fixed)
     context = residual_context(train, resp, RATE_LAYOUT.column(x_current, "pole"))
     names = remaining + ([BASELINE] if current is None else [])
     fits = fit_candidates(train, x_current, names, fixed, context=context, max_iter=data.max_iter)
@@ -898,7 +895,7 @@ def _acceptance(data, st, verdicts, base_search) -> RoundResult:
     )
 
 
-def _final_diagnosis(data, params, axis, rounds, before_held, analysis_before) -> Diagnosis:
+def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
     """The final model: tentative effects set aside, the plain refit judged
     against the given parameters, the parameter set updated."""
     rounds, accepted, tentative = _set_aside_tentative(rounds)
@@ -906,7 +903,8 @@ def _final_diagnosis(data, params, axis, rounds, before_held, analysis_before) -
     train, ax = data.train, data.ax
     x_file, given_fixed = ax.rate_params().to_vector(), tuple(ax.effects)
     m = train.n_samples
-    given_res = train.flat(train.omega - _one(predict(train, x_file[None], (), given_fixed)).omega)
+    given = predict_one(train, x_file, given_fixed)  # the model the file gave
+    given_res = train.flat(train.omega - given.omega)
     bic_given = float(
         m * np.log(max(given_res @ given_res, 1e-300) / m) + RATE_LAYOUT.size * np.log(m)
     )
@@ -928,8 +926,7 @@ def _final_diagnosis(data, params, axis, rounds, before_held, analysis_before) -
     else:
         final_x, final_fixed = final.rate_vector, final.effects()
         params_out = params.with_axis(axis, _updated_axis(ax, final))
-    final_resp = _one(predict(train, final_x[None], (), final_fixed))
-    res_before = train.omega - _one(predict(train, x_file[None], (), given_fixed)).omega
+    final_resp = predict_one(train, final_x, final_fixed)
     return Diagnosis(
         axis=axis,
         rounds=tuple(rounds),
@@ -937,9 +934,9 @@ def _final_diagnosis(data, params, axis, rounds, before_held, analysis_before) -
         rmse_after=_rms(after_held),
         noise_floor=first.noise_floor,
         params_out=params_out,
-        analysis_before=analysis_before,
+        analysis_before=analyse(train, given),
         analysis_after=analyse(train, final_resp),
-        residual_before=tuple(res_before),
+        residual_before=tuple(train.omega - given.omega),
         residual_after=tuple(train.omega - final_resp.omega),
         holdout_names=data.holdout_names,
         refit=refit,
@@ -1163,16 +1160,6 @@ def _checked(v: Verdict, fit: CandidateFit, failed: bool) -> Verdict:
         if not ok:
             return replace(v, significant=False, reason=why)
     return v
-
-
-def _one(resp):
-    """The first parameter set of a batched (P, R, N) response: (R, N)."""
-    return type(resp)(
-        *(
-            None if a is None else a[0]
-            for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
-        )
-    )
 
 
 def _updated_axis(ax: AxisParams, fit: CandidateFit) -> AxisParams:

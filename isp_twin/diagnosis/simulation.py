@@ -18,7 +18,15 @@ from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.parameters import EffectSpec, RateParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
 
-__all__ = ["WARMUP", "RunStack", "predict", "residuals", "residuals_many", "stack_runs"]
+__all__ = [
+    "WARMUP",
+    "RunStack",
+    "predict",
+    "predict_one",
+    "residuals",
+    "residuals_many",
+    "stack_runs",
+]
 
 
 @dataclass(frozen=True)
@@ -173,6 +181,18 @@ def predict(
         resp.angle.reshape(shape),
         resp.regime.reshape(shape),
         None if resp.omega_true is None else resp.omega_true.reshape(shape),
+    )
+
+
+def predict_one(stack: RunStack, rate_vector: np.ndarray, fixed: Sequence[EffectSpec] = ()):
+    """`predict` for one rate vector (`RATE_LAYOUT.size`,) with `fixed`
+    effects: an `AxisResponse` of arrays (R, N)."""
+    resp = predict(stack, np.asarray(rate_vector)[None], (), fixed)
+    return type(resp)(
+        *(
+            None if a is None else a[0]
+            for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
+        )
     )
 
 

@@ -533,43 +533,20 @@ def _regime_tables(
 ) -> tuple[list[np.ndarray], np.ndarray]:
     """One-step-ahead regression rows per regime, and the moving speeds [rad/s].
 
-    Returns per regime a table (K_r, 6) of columns (rate before, command,
-    sign, speed, 1 on breakaway rows, rate after) with known `effects` taken
-    out, and the |rate| of all moving samples (K,). `rest` [rad/s] is the
-    level at or below which a sample counts as at rest.
+    The rows of `_regression_rows` split by regime, as tables (K_r, 6) of
+    columns (rate before, command, sign, speed, 1 on breakaway rows, rate
+    after), each run's moving rows before its breakaway rows; and the |rate|
+    of all moving samples (K,). `rest` [rad/s] is the level at or below which
+    a sample counts as at rest.
     """
-    rows: list[list[np.ndarray]] = [[] for _ in range(RATE_LAYOUT.n_regimes)]
-    speeds = []
-    for d in data:
-        w0, w1 = d.omega[:-1], d.omega[1:]
-        y = side_angle(d, side_source)[:-1]
-        u0, more = _effect_drive(d, y, effects)
-        w1 = w1 - more
-        moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
-        # A breakaway moves the way the total drive (command and known
-        # effects) pushes: its direction is that of the motion it starts.
-        breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest)
-        r_move = regime_index(y, w0)
-        r_break = regime_index(y, w1)
-        speeds.append(np.abs(w0[moving]))
-        for r, regime_rows in enumerate(rows):
-            m = moving & (r_move == r)
-            b = breakaway & (r_break == r)
-            regime_rows.append(
-                np.column_stack(
-                    [
-                        np.r_[w0[m], np.zeros(b.sum())],
-                        np.r_[u0[m], u0[b]],
-                        np.r_[np.sign(w0[m]), np.sign(w1[b])],
-                        np.r_[np.abs(w0[m]), np.zeros(b.sum())],
-                        np.r_[np.zeros(m.sum()), np.ones(b.sum())],
-                        np.r_[w1[m], w1[b]],
-                    ]
-                )
-            )
-    tables = [np.concatenate(t) if t else np.empty((0, 6)) for t in rows]
-    speed = np.concatenate(speeds) if speeds else np.empty(0)
-    return tables, speed
+    rows = _regression_rows(data, side_source, rest, effects)
+    starts = np.cumsum([0] + [d.omega.size - 1 for d in data])
+    run = np.searchsorted(starts, rows.step, side="right") - 1
+    order = np.lexsort((rows.step, rows.brk, run))
+    columns = np.column_stack([rows.w0, rows.u0, rows.sgn, rows.speed, rows.brk, rows.w1])[order]
+    regime = rows.regime[order]
+    tables = [columns[regime == r] for r in range(RATE_LAYOUT.n_regimes)]
+    return tables, rows.speed[rows.brk == 0]
 
 
 def _fit_regime(table: np.ndarray, grid: np.ndarray) -> tuple[float, ...]:
@@ -665,7 +642,7 @@ def _regression_rows(data, side_source, rest, effects) -> _Rows:
             )
         )
         offset += w0.size
-    cols = [np.concatenate([p[i] for p in parts]) for i in range(9)]
+    cols = [np.concatenate([p[i] for p in parts]) if parts else np.empty(0) for i in range(9)]
     return _Rows(*cols)
 
 
@@ -1315,11 +1292,11 @@ class _Search:
         self.z_best = self.starts[0]
         self.best_cost = np.inf
 
-    def residuals_of(self, xs: np.ndarray) -> np.ndarray:
-        """`residuals` at free quantities (P, n_free) with this search's timing."""
+    def _model(self) -> tuple:
+        """What `residuals` and `rmse` take after the parameters: the data and
+        this search's side source, rest level, effects, timing and integration."""
         s = self.s
-        return residuals(
-            self.free.full(xs),
+        return (
             self.data,
             s.side_source,
             s.rest_rate_deg_s,
@@ -1328,18 +1305,13 @@ class _Search:
             s.integration,
         )
 
+    def residuals_of(self, xs: np.ndarray) -> np.ndarray:
+        """`residuals` at free quantities (P, n_free) with this search's timing."""
+        return residuals(self.free.full(xs), *self._model())
+
     def rmse_of(self, xs: np.ndarray) -> np.ndarray:
         """Eq. 9 at free quantities (P, n_free), not counted as evaluations."""
-        s = self.s
-        return rmse(
-            self.free.full(xs),
-            self.data,
-            s.side_source,
-            s.rest_rate_deg_s,
-            self.effects,
-            self.timing,
-            s.integration,
-        )
+        return rmse(self.free.full(xs), *self._model())
 
     def batch_cost(self, xt: np.ndarray) -> np.ndarray:
         """Eq. 9 at free quantities (n_free, S) (the evolutionary search's shape)."""
