@@ -25,8 +25,10 @@ computed here from its RMS figures (deg/s) and the truth's noise sigma. The
 diagnose JSON holds rmse_after and noise_floor in rad/s.
 
 Results go to an SQLite file keyed by (case, seed): an interrupted run
-resumes, a finished one reprints its table. ``--jobs`` runs axes in parallel
-processes (at most 2: the machine has 2 cores).
+resumes, a finished one reprints its table. Axes run as Dask tasks: a local
+cluster of ``--jobs`` worker processes (default one per core), or the workers
+of a running scheduler (``--scheduler tcp://host:8786``) for the 40-axes-per-case
+study that outgrows one 2-core machine.
 
     python benchmarks/identify_reference.py --axes 3 --jobs 2 --db reference.sqlite
 """
@@ -42,7 +44,6 @@ import statistics
 import subprocess
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from isp_twin.errors import IspTwinError  # noqa: E402
+from isp_twin.experiments.sweep.execute import dask_client  # noqa: E402
 from isp_twin.reference import EFFECT_NAMES, RUN_NAMES  # noqa: E402
 
 CASES = ("clean", *EFFECT_NAMES)
@@ -387,6 +389,44 @@ def speed_lines(records: list[dict]) -> list[str]:
     return lines
 
 
+def _run_axes(todo: list[tuple[str, int]], db: sqlite3.Connection, workdir: Path, args) -> int:
+    """Run `todo` (case, seed) on Dask, storing each axis in `db` as it ends; the
+    number of worker threads.
+
+    Each task is one axis (`one_axis`: its commands run as child processes of
+    the worker); the results are stored by this process only, so an interrupted
+    run resumes with the axes not stored.
+    """
+    if not todo:
+        return 0
+    from distributed import as_completed
+
+    client, cluster = dask_client(args.scheduler, args.jobs, len(todo))
+    try:
+        threads = sum(client.nthreads().values())
+        futures = {
+            client.submit(one_axis, c, s, workdir, args.timeout, pure=False): (c, s)
+            for c, s in todo
+        }
+        for fut in as_completed(futures):
+            c, s = futures[fut]
+            rec = fut.result()
+            db.execute("INSERT OR REPLACE INTO result VALUES (?, ?, ?)", (c, s, json.dumps(rec)))
+            db.commit()
+            print(
+                f"  {c} seed {s}: identify {rec.get('identify_train_over_noise', math.nan):.3g}x "
+                f"train, {rec.get('identify_heldout_over_noise', math.nan):.3g}x held out; "
+                f"diagnose {rec.get('diagnose_selected', '-')}"
+                + (f"; {rec['error']}" if "error" in rec else ""),
+                flush=True,
+            )
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return threads
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--axes", type=int, default=3, help="axes (seeds 0..N-1) per case")
@@ -402,7 +442,18 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--db", type=Path, default=Path("identify_reference.sqlite"))
     p.add_argument("--workdir", type=Path, default=None, help="run folders (default: beside --db)")
-    p.add_argument("--jobs", type=int, default=1, choices=(1, 2))
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        help="local Dask workers (default: one per core, at most one per axis to run)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        help="address of a running Dask scheduler (tcp://host:8786) instead of a local "
+        "cluster; its workers must see this checkout and --workdir at the same paths",
+    )
     p.add_argument(
         "--timeout",
         type=float,
@@ -440,23 +491,12 @@ def main(argv: list[str] | None = None) -> int:
             f"{len(todo)} axes to run, {len(cases) * (args.axes - args.first_seed) - len(todo)} already in {args.db}"
         )
     wall = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = {
-            pool.submit(one_axis, c, s, workdir.resolve(), args.timeout): (c, s) for c, s in todo
-        }
-        for fut in as_completed(futures):
-            c, s = futures[fut]
-            rec = fut.result()
-            db.execute("INSERT OR REPLACE INTO result VALUES (?, ?, ?)", (c, s, json.dumps(rec)))
-            db.commit()
-            print(
-                f"  {c} seed {s}: identify {rec.get('identify_train_over_noise', math.nan):.3g}x "
-                f"train, {rec.get('identify_heldout_over_noise', math.nan):.3g}x held out; "
-                f"diagnose {rec.get('diagnose_selected', '-')}"
-                + (f"; {rec['error']}" if "error" in rec else ""),
-                flush=True,
-            )
-    print(f"wall time {time.perf_counter() - wall:.0f} s, jobs {args.jobs}")
+    try:
+        workers = _run_axes(todo, db, workdir.resolve(), args)
+    except IspTwinError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    print(f"wall time {time.perf_counter() - wall:.0f} s, Dask workers {workers}")
     print()
     print(
         "| case | axes | identify train & held-out <= bound | median train/noise | "

@@ -33,6 +33,7 @@ __all__ = [
     "run_batch",
     "Progress",
     "local_client",
+    "dask_client",
     "execute",
 ]
 
@@ -231,7 +232,7 @@ def execute(
         return tracker.done, skipped
     own = None
     if client is None:
-        own = _own_client(scheduler, workers, len(pending))
+        own = dask_client(scheduler, workers, len(pending))
         client = own[0]
     try:
         _run_on_dask(client, pending, store, tracker, name, batch)
@@ -255,8 +256,9 @@ def _pending(runs: Sequence[RunSpec], finished: set[str]) -> list[RunSpec]:
     return pending
 
 
-def _own_client(scheduler: str | None, workers: int | None, n_pending: int) -> tuple[Any, Any]:
-    """(client, local cluster or None): the scheduler at `scheduler`, else a local cluster.
+def dask_client(scheduler: str | None, workers: int | None, n_pending: int) -> tuple[Any, Any]:
+    """(client, local cluster or None): the scheduler at `scheduler`, else a local cluster
+    of `worker_count` workers; close both when done.
 
     Raises:
         IspTwinError: the scheduler does not answer.
