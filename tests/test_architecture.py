@@ -7,7 +7,7 @@
 * `isp_twin.control` (the controller blocks) imports neither the twin nor the
   scenario nor the closed loop: it is plain math, testable alone;
 * the packages follow the pipeline (`PIPELINE`): model, control, experiments,
-  identification, output, diagnosis, commands; each imports only from those
+  estimation, identification, output, diagnosis, commands; each imports only from those
   before it and the shared base, and the reference simulator from none;
 * `isp_twin.model.friction` (Eq. 5, compiled by numba as written) uses only the
   math module, numpy and the vocabulary's side indices;
@@ -63,6 +63,7 @@ PIPELINE = (
     "model",
     "control",
     "experiments",
+    "estimation",
     "identification",
     "output",
     "diagnosis",
@@ -386,7 +387,7 @@ LONG_FUNCTIONS = {
     # interval, one BIC, one report path for identify and diagnose).
     "isp_twin/identification/report.py::write_report",
     "isp_twin/identification/report.py::result_json",
-    "isp_twin/diagnosis/fit.py::lm_steps",
+    "isp_twin/estimation/least_squares.py::lm_steps",
     "isp_twin/diagnosis/report.py::write_report",
     "isp_twin/diagnosis/residual.py::analyse",
 }

@@ -78,6 +78,7 @@ from isp_twin.diagnosis.simulation import RunStack, predict_one, residuals_many
 from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.errors import DataError, ParameterError, nearest
+from isp_twin.estimation.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.identification.fit import (
     JOINT_FORMS,
     TIMINGS,
@@ -92,7 +93,6 @@ from isp_twin.identification.fit import (
 )
 from isp_twin.identification.fit import Settings as IdSettings
 from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
-from isp_twin.identification.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.model.effects import EFFECTS, effect_class
 from isp_twin.model.parameters import (
     RATE_LAYOUT,

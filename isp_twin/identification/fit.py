@@ -60,8 +60,8 @@ from enum import Enum
 import numpy as np
 
 from isp_twin.errors import DataError, ParameterError
+from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.identification.measured import MeasuredData
-from isp_twin.identification.verdict import noise_floor_of
 from isp_twin.model.effects import Effect, make_effect
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.friction import regime_index
