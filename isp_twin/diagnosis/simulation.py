@@ -64,6 +64,11 @@ class RunStack:
         """Samples that count, summed over the runs."""
         return int(self.mask.sum())
 
+    @property
+    def breaks(self) -> list[int]:
+        """Where each run starts in `flat`'s vector, and its end: (R+1,)."""
+        return [0, *np.cumsum(self.mask.sum(axis=1)).tolist()]
+
     def flat(self, x: np.ndarray) -> np.ndarray:
         """The counted samples of ``x`` (..., R, N), concatenated: (..., M)."""
         return x[..., self.mask]

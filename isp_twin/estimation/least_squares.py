@@ -32,9 +32,9 @@ class FitResult:
         x: best parameters, (n,).
         residual: residuals at x, (M,).
         sse: sum of squared residuals at x.
-        jacobian: d residual / d x at the last linearisation point, (M, n).
-        cov: Gauss-Newton covariance sse/(M-n) * (J^T J)^-1, (n, n) (optimistic
-            when the residuals are correlated).
+        jacobian: d residual / d x at the last linearisation point, (M, n)
+            (zero columns where the model could not be simulated beside x);
+            the intervals come from it (`isp_twin.estimation.intervals`).
         status: why it stopped.
         sse_log: sse after each iteration.
     """
@@ -43,14 +43,8 @@ class FitResult:
     residual: np.ndarray
     sse: float
     jacobian: np.ndarray
-    cov: np.ndarray
     status: FitStatus
     sse_log: tuple[float, ...]
-
-    @property
-    def ci95(self) -> np.ndarray:
-        """95 % confidence half-widths, (n,)."""
-        return 1.96 * np.sqrt(np.maximum(np.diag(self.cov), 0.0))
 
 
 def lm_steps(
@@ -110,7 +104,7 @@ def lm_steps(
         jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)
         # A finite-difference point the model cannot simulate (a candidate
         # that diverges there) gives no slope: that parameter stays put this
-        # iteration and, if it never gets one, has no interval.
+        # iteration and, if it never gets one, has no interval (a zero column).
         jac[:, ~np.all(np.isfinite(jac), axis=0)] = 0.0
         js = jac * scale  # scaled variables
         with np.errstate(over="ignore", invalid="ignore"):  # steep slopes: see the covariance
@@ -145,22 +139,7 @@ def lm_steps(
             if lam > 1e8:
                 status = FitStatus.NO_PROGRESS
                 break
-    m = r.size
-    js = jac * scale
-    sigma2 = sse / max(m - n, 1)
-    try:
-        with np.errstate(over="ignore", invalid="ignore"):
-            cov_s = sigma2 * np.linalg.pinv(js.T @ js) if n else np.zeros((0, 0))
-    except np.linalg.LinAlgError:
-        # Slopes so steep (a candidate near divergence) that the SVD fails:
-        # the parameters are not determined, which the caller reports.
-        cov_s = np.full((n, n), np.nan)
-    cov = cov_s * np.outer(scale, scale)
-    # A parameter the data never touch (an unvisited regime) has no interval.
-    blind = ~np.any(jac != 0.0, axis=0)
-    cov[blind, :] = np.nan
-    cov[:, blind] = np.nan
-    return FitResult(x, r, sse, jac, cov, status, tuple(log))
+    return FitResult(x, r, sse, jac, status, tuple(log))
 
 
 def solve_many(
