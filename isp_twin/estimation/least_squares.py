@@ -69,27 +69,43 @@ def lm_steps(
     finite difference does not see.
     """
     x = np.clip(np.asarray(x0, float), lower, upper)
-    n = x.size
     r = (yield x[None])[0]
     sse = float(r @ r)
     if len(scan):
-        factors = np.asarray(scan_factors, float)
-        pts = np.repeat(x[None], len(scan) * factors.size, axis=0)
-        for j, i in enumerate(scan):
-            pts[j * factors.size : (j + 1) * factors.size, i] = x[i] * factors
-        pts = np.clip(pts, lower, upper)
-        rs = yield pts
-        sses = np.einsum("ij,ij->i", rs, rs).reshape(len(scan), factors.size)
-        sses = np.where(np.isfinite(sses), sses, np.inf)
-        trial = x.copy()
-        for j, i in enumerate(scan):
-            k = int(np.argmin(sses[j]))
-            if sses[j, k] < sse:
-                trial[i] = pts[j * factors.size + k, i]
-        if np.any(trial != x):
-            rt = (yield trial[None])[0]
-            if float(rt @ rt) < sse:
-                x, r, sse = trial, rt, float(rt @ rt)
+        x, r, sse = yield from _scanned(x, r, sse, lower, upper, scan, scan_factors)
+    return (yield from _iterations(x, r, sse, lower, upper, scale, max_iter, rtol, rel_step))
+
+
+_Steps = Generator[np.ndarray, np.ndarray, tuple]
+
+
+def _scanned(x, r, sse, lower, upper, scan, scan_factors) -> _Steps:
+    """`lm_steps`' one-at-a-time scan of the parameters in `scan`; (x, r, sse) after it."""
+    factors = np.asarray(scan_factors, float)
+    pts = np.repeat(x[None], len(scan) * factors.size, axis=0)
+    for j, i in enumerate(scan):
+        pts[j * factors.size : (j + 1) * factors.size, i] = x[i] * factors
+    pts = np.clip(pts, lower, upper)
+    rs = yield pts
+    sses = np.einsum("ij,ij->i", rs, rs).reshape(len(scan), factors.size)
+    sses = np.where(np.isfinite(sses), sses, np.inf)
+    trial = x.copy()
+    for j, i in enumerate(scan):
+        k = int(np.argmin(sses[j]))
+        if sses[j, k] < sse:
+            trial[i] = pts[j * factors.size + k, i]
+    if np.any(trial != x):
+        rt = (yield trial[None])[0]
+        if float(rt @ rt) < sse:
+            x, r, sse = trial, rt, float(rt @ rt)
+    return x, r, sse
+
+
+def _iterations(
+    x, r, sse, lower, upper, scale, max_iter, rtol, rel_step
+) -> Generator[np.ndarray, np.ndarray, FitResult]:
+    """`lm_steps`' damped Gauss-Newton iterations from x (three dampings tried per iteration)."""
+    n = x.size
     lam = 1e-2
     log = []
     status = FitStatus.MAX_ITERATIONS
@@ -98,29 +114,9 @@ def lm_steps(
         if n == 0:
             status = FitStatus.CONVERGED
             break
-        h = rel_step * scale
-        step = np.where(x + h <= upper, h, -h)
-        pts = x[None] + np.diag(step)
-        jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)
-        # A finite-difference point the model cannot simulate (a candidate
-        # that diverges there) gives no slope: that parameter stays put this
-        # iteration and, if it never gets one, has no interval (a zero column).
-        jac[:, ~np.all(np.isfinite(jac), axis=0)] = 0.0
-        js = jac * scale  # scaled variables
-        with np.errstate(over="ignore", invalid="ignore"):  # steep slopes: see the covariance
-            a = js.T @ js
-            g = js.T @ r
-        diag = np.diag(a).copy()
-        diag[diag <= 0] = 1.0
+        jac = yield from _jacobian(x, r, scale, upper, rel_step)
         lams = lam * np.array([0.1, 1.0, 10.0])
-        trials = []
-        for lm in lams:
-            try:
-                dz = -np.linalg.solve(a + lm * np.diag(diag) + 1e-12 * np.eye(n), g)
-            except np.linalg.LinAlgError:
-                dz = -np.linalg.lstsq(a + lm * np.diag(diag), g, rcond=None)[0]
-            trials.append(np.clip(x + dz * scale, lower, upper))
-        trials = np.array(trials)
+        trials = _damped_steps(jac, r, x, scale, lower, upper, lams)
         rt = yield trials
         sses = np.einsum("ij,ij->i", rt, rt)
         sses = np.where(np.isfinite(sses), sses, np.inf)  # a diverged trial is no step
@@ -140,6 +136,38 @@ def lm_steps(
                 status = FitStatus.NO_PROGRESS
                 break
     return FitResult(x, r, sse, jac, status, tuple(log))
+
+
+def _jacobian(x, r, scale, upper, rel_step) -> Generator[np.ndarray, np.ndarray, np.ndarray]:
+    """Forward differences at x (one batched evaluation), (M, n)."""
+    h = rel_step * scale
+    step = np.where(x + h <= upper, h, -h)
+    pts = x[None] + np.diag(step)
+    jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)
+    # A finite-difference point the model cannot simulate (a candidate
+    # that diverges there) gives no slope: that parameter stays put this
+    # iteration and, if it never gets one, has no interval (a zero column).
+    jac[:, ~np.all(np.isfinite(jac), axis=0)] = 0.0
+    return jac
+
+
+def _damped_steps(jac, r, x, scale, lower, upper, lams) -> np.ndarray:
+    """The Levenberg-Marquardt steps from x for each damping in `lams`, clipped: (len(lams), n)."""
+    n = x.size
+    js = jac * scale  # scaled variables
+    with np.errstate(over="ignore", invalid="ignore"):  # steep slopes: no interval later
+        a = js.T @ js
+        g = js.T @ r
+    diag = np.diag(a).copy()
+    diag[diag <= 0] = 1.0
+    trials = []
+    for lm in lams:
+        try:
+            dz = -np.linalg.solve(a + lm * np.diag(diag) + 1e-12 * np.eye(n), g)
+        except np.linalg.LinAlgError:
+            dz = -np.linalg.lstsq(a + lm * np.diag(diag), g, rcond=None)[0]
+        trials.append(np.clip(x + dz * scale, lower, upper))
+    return np.array(trials)
 
 
 def solve_many(
