@@ -20,7 +20,7 @@ import pytest
 import yaml
 
 from isp_twin.cli import main
-from isp_twin.identification.verdict import CONVERGED_RATIO
+from isp_twin.estimation.verdict import CONVERGED_RATIO
 
 
 def _strict(text: str) -> dict:

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from isp_twin.identification.verdict import CONVERGED_RATIO, fit_verdict, noise_floor_of
+from isp_twin.estimation.verdict import CONVERGED_RATIO, fit_verdict, noise_floor_of
 from isp_twin.units import DEG
 
 

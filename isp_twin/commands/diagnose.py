@@ -18,9 +18,8 @@ from isp_twin.commands.data_options import (
 from isp_twin.commands.progress import working
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, FIXED_SIDE
 from isp_twin.errors import ParameterError
-from isp_twin.identification.fit import fitted_with
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
-from isp_twin.model.parameters import AxisParams, ParameterSet, load_parameters, save_parameters
+from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
 from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
 from isp_twin.units import DEG
 from isp_twin.vocabulary import GIMBAL_AXES
@@ -262,7 +261,7 @@ def _write_outputs(
 
     with transaction():
         if args.out is not None:
-            out_set = replace(_with_model(diag, args.axis, axis_in), name=args.out.stem, path=None)
+            out_set = replace(diag.params_out, name=args.out.stem, path=None)
             save_parameters(out_set, args.out)
         write_report(diag, report_path, args.out)
         if recording is not None:
@@ -277,17 +276,6 @@ def _write_outputs(
         say(f"recording written to {recording}  (open it with: rerun {recording})")
     if args.json is not None and not is_stdout(args.json):
         say(f"result written to {args.json}")
-
-
-def _with_model(diag, axis: str, axis_in: AxisParams) -> ParameterSet:
-    """The output parameters with the model they were fitted with recorded:
-    diagnose's own model where it re-fitted the axis, else the input file's
-    record (or none) with the parameters it came with."""
-    out = diag.params_out.axis(axis)
-    if (out.regimes, out.effects) == (axis_in.regimes, axis_in.effects):
-        return diag.params_out.with_axis(axis, replace(out, fitted_with=axis_in.fitted_with))
-    record = fitted_with(diag.integration, diag.timing)
-    return diag.params_out.with_axis(axis, replace(out, fitted_with=record))
 
 
 def _json_default(x):

@@ -17,9 +17,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from isp_twin.diagnosis.fit import FitResult, FitStatus, lm_steps, solve_many
 from isp_twin.diagnosis.residual import ResidualContext, residual_context
 from isp_twin.diagnosis.simulation import RunStack, predict, predict_one, residuals_many
+from isp_twin.estimation.information import bic
+from isp_twin.estimation.intervals import confidence_intervals
+from isp_twin.estimation.least_squares import FitResult, FitStatus, lm_steps, solve_many
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec
 from isp_twin.model.rate_layout import CandidateLayout
@@ -57,7 +59,7 @@ class CandidateFit:
         sse: training sum of squared residuals [(rad/s)^2].
         n_samples: training samples M.
         n_params: free parameters k.
-        bic: ``M*ln(sse/M) + k*ln(M)``.
+        bic: `isp_twin.estimation.information.bic` of the training fit.
         status: optimizer status.
         fixed: effects already in the model (not refitted).
     """
@@ -253,16 +255,18 @@ def _named_result(layout, fit: FitResult, classes, stack: RunStack, fixed) -> Ca
     """A candidate's `CandidateFit`: effect values and intervals by name, the
     frozen parameters at their start (no interval)."""
     n, vec, frozen, start = layout
+    ci95 = confidence_intervals(fit.jacobian, fit.residual, stack.breaks).half_width
     if n == BASELINE:
-        return _result(n, fit, {}, {}, vec, stack, fixed)
+        return _result(n, fit, ci95, {}, {}, vec, stack, fixed)
     cls = classes[n]
     values = {p: float(v) for p, v in vec.effect_values(fit.x).items()}
     values.update({p: float(start[p]) for p in frozen})
-    ci = {p: float(v) for p, v in vec.effect_values(fit.ci95).items()}
+    ci = {p: float(v) for p, v in vec.effect_values(ci95).items()}
     ci.update({p: float("nan") for p in frozen})
     return _result(
         n,
         fit,
+        ci95,
         {p: values[p] for p in cls.param_names},
         {p: ci[p] for p in cls.param_names},
         vec,
@@ -282,8 +286,8 @@ def _polish_effects(stack, layouts, fits, scales, max_iter, fixed) -> list[FitRe
     this leaves the held-out error at 1.5 noise floors; alone, the two
     smooth effect parameters converge in three iterations (docs/diagnosis.md,
     "Effect-only polish"). A polished fit is kept only if its training sse
-    is lower; its intervals stay those of the joint fit (which account for
-    the rate parameters).
+    is lower; its intervals use the joint fit's Jacobian (which accounts for
+    the rate parameters) with the polished residuals.
     """
     todo = [i for i, (n, vec, _, _) in enumerate(layouts) if n != BASELINE and vec.effect_params]
     if not todo:
@@ -326,21 +330,21 @@ def _polish_effects(stack, layouts, fits, scales, max_iter, fixed) -> list[FitRe
 
 
 def _result(
-    name, fit: FitResult, params, ci, vec: CandidateLayout, stack: RunStack, fixed
+    name, fit: FitResult, ci95, params, ci, vec: CandidateLayout, stack: RunStack, fixed
 ) -> CandidateFit:
+    """`fit` as a `CandidateFit`; `ci95`: the half-widths of its whole vector."""
     m = stack.n_samples
     k = vec.size
-    sse = max(fit.sse, 1e-300)
     return CandidateFit(
         name=name,
         params=params,
         ci95=ci,
         rate_vector=vec.rate_part(fit.x).copy(),
-        rate_ci95=vec.rate_part(fit.ci95).copy(),
+        rate_ci95=vec.rate_part(ci95).copy(),
         sse=float(fit.sse),
         n_samples=m,
         n_params=k,
-        bic=float(m * np.log(sse / m) + k * np.log(m)),
+        bic=bic(fit.sse, m, k),
         status=fit.status,
         fixed=tuple(fixed),
     )

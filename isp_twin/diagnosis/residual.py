@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from isp_twin.identification.verdict import noise_floor_of
+from isp_twin.estimation.verdict import noise_floor_of
 
 __all__ = [
     "NOISE_METHOD",

@@ -78,6 +78,9 @@ from isp_twin.diagnosis.simulation import RunStack, predict_one, residuals_many
 from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
 from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.errors import DataError, ParameterError, nearest
+from isp_twin.estimation.information import bic, parameter_penalty
+from isp_twin.estimation.parameter_file import fitted_axis
+from isp_twin.estimation.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.identification.fit import (
     JOINT_FORMS,
     TIMINGS,
@@ -85,6 +88,7 @@ from isp_twin.identification.fit import (
     JointEstimate,
     Timing,
     equation_error_estimate,
+    fitted_with,
     identify,
     joint_equation_error_estimate,
     rmse,
@@ -92,12 +96,12 @@ from isp_twin.identification.fit import (
 )
 from isp_twin.identification.fit import Settings as IdSettings
 from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
-from isp_twin.identification.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.model.effects import EFFECTS, effect_class
 from isp_twin.model.parameters import (
     RATE_LAYOUT,
     AxisParams,
     EffectSpec,
+    FittedWith,
     ParameterSet,
     RateParams,
 )
@@ -905,9 +909,7 @@ def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
     m = train.n_samples
     given = predict_one(train, x_file, given_fixed)  # the model the file gave
     given_res = train.flat(train.omega - given.omega)
-    bic_given = float(
-        m * np.log(max(given_res @ given_res, 1e-300) / m) + RATE_LAYOUT.size * np.log(m)
-    )
+    bic_given = bic(float(given_res @ given_res), m, RATE_LAYOUT.size)
     # Without a new effect, the plain re-identification is kept if it passes
     # the same rule against the given parameters.
     first = rounds[0]
@@ -925,7 +927,8 @@ def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
         final_x, final_fixed = x_file, given_fixed
     else:
         final_x, final_fixed = final.rate_vector, final.effects()
-        params_out = params.with_axis(axis, _updated_axis(ax, final))
+        record = fitted_with(data.integration, data.timing)
+        params_out = params.with_axis(axis, _updated_axis(ax, final, record))
     final_resp = predict_one(train, final_x, final_fixed)
     return Diagnosis(
         axis=axis,
@@ -1119,7 +1122,7 @@ def _as_base(fit: CandidateFit, base: CandidateFit) -> CandidateFit:
         rate_vector=base.rate_vector.copy(),
         rate_ci95=base.rate_ci95.copy(),
         sse=base.sse,
-        bic=base.bic + (fit.n_params - base.n_params) * np.log(max(base.n_samples, 2)),
+        bic=base.bic + parameter_penalty(fit.n_params - base.n_params, base.n_samples),
     )
 
 
@@ -1162,22 +1165,11 @@ def _checked(v: Verdict, fit: CandidateFit, failed: bool) -> Verdict:
     return v
 
 
-def _updated_axis(ax: AxisParams, fit: CandidateFit) -> AxisParams:
-    b = tuple(r.b for r in ax.regimes)
-    regimes = RateParams.from_vector(fit.rate_vector).to_regimes(b)
-    ci = np.where(np.isfinite(fit.rate_ci95), fit.rate_ci95, np.nan)
-    ci_regimes = tuple(
-        replace(r, b=float("nan")) for r in RateParams.from_vector(np.abs(ci)).to_regimes(b)
-    )
+def _updated_axis(ax: AxisParams, fit: CandidateFit, record: FittedWith) -> AxisParams:
+    """The axis re-identified with `fit`'s effects (`isp_twin.estimation.parameter_file`)."""
     note = (
         (ax.note + "; " if ax.note else "")
         + "re-identified by diagnose with "
         + ", ".join(e.name for e in fit.effects())
     )
-    return replace(
-        ax,
-        regimes=regimes,
-        ci95=tuple(ci_regimes),
-        effects=tuple(EffectSpec(e.name, dict(e.params)) for e in fit.effects()),
-        note=note,
-    )
+    return fitted_axis(ax, fit.rate_vector, fit.rate_ci95, fit.effects(), record, note)

@@ -20,8 +20,8 @@ A candidate effect is *significant* when all four hold:
    of the baseline's held-out MSE. Where the model misses far more than the
    noise (real data), a real but negligible effect is not worth a term.
 4. Information criterion: its training BIC is lower than the model's without
-   it (BIC = M ln(SSE/M) + k ln M; the effect's extra parameters must pay for
-   themselves).
+   it (`isp_twin.estimation.information.bic`: M ln(SSE/M) + k ln M; the
+   effect's extra parameters must pay for themselves).
 
 Among significant candidates the one with the lowest held-out RMSE is
 selected; near-ties (within `MIN_GAIN` of the noise variance) go to the

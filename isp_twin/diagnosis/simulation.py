@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from isp_twin.errors import DataError
+from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.parameters import EffectSpec, RateParams
@@ -64,6 +65,11 @@ class RunStack:
         """Samples that count, summed over the runs."""
         return int(self.mask.sum())
 
+    @property
+    def breaks(self) -> list[int]:
+        """Where each run starts in `flat`'s vector, and its end: (R+1,)."""
+        return [0, *np.cumsum(self.mask.sum(axis=1)).tolist()]
+
     def flat(self, x: np.ndarray) -> np.ndarray:
         """The counted samples of ``x`` (..., R, N), concatenated: (..., M)."""
         return x[..., self.mask]
@@ -114,8 +120,7 @@ def stack_runs(
     for i, r in enumerate(runs):
         w = np.asarray(r.omega, float)
         if w.size > 8:
-            d = np.diff(w[: min(w.size, 2000)], 2)
-            sigma = 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(6.0)
+            sigma = noise_floor_of([w[:2000]])
             if abs(w[0]) <= 3.0 * sigma:
                 omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)

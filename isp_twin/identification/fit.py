@@ -28,7 +28,7 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    least squares again. The result is taken in the form the parameter file
    stores (6 digits), moved off a stick/slip threshold if the rounding would
    spoil the fit (`_robust_to_storage`).
-6. **Confidence intervals** from the Jacobian: ``cov = s^2 (J^T J)^-1``,
+6. **Confidence intervals** (`isp_twin.estimation.intervals`): ``cov = s^2 (J^T J)^-1``,
    inflated by ``(1 + rho)/(1 - rho)`` for a lag-1 residual correlation
    rho > 0 (effective sample size), with the Student t quantile. A
    quantity is reported identifiable when its regime is visited and its
@@ -54,14 +54,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from enum import Enum
 
 import numpy as np
 
 from isp_twin.errors import DataError, ParameterError
+from isp_twin.estimation.intervals import confidence_intervals
+from isp_twin.estimation.parameter_file import fitted_axis, stored_form
+from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.identification.measured import MeasuredData
-from isp_twin.identification.verdict import noise_floor_of
 from isp_twin.model.effects import Effect, make_effect
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.friction import regime_index
@@ -71,7 +73,6 @@ from isp_twin.model.parameters import (
     EffectSpec,
     FittedWith,
     RateParams,
-    RegimeParams,
 )
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
 from isp_twin.units import DEG
@@ -101,7 +102,6 @@ __all__ = [
     "rmse",
     "identify",
     "to_axis_params",
-    "stored_form",
 ]
 
 #: Names of the rate-form quantities per regime, `RateParams.to_vector` order
@@ -1077,54 +1077,6 @@ def _z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, 
     return lo.ravel(), hi.ravel()
 
 
-def _confidence(jac: np.ndarray, resid: np.ndarray, breaks: list[int], level: float, floor: float):
-    """Half-widths from the Jacobian; also the ones at the noise floor, and rho."""
-    from scipy.stats import t as student_t
-
-    n, p = jac.shape
-    dof = max(n - p, 1)
-    s2 = float(resid @ resid) / dof
-    # Lag-1 autocorrelation inside each set (not across set boundaries).
-    num = den = 0.0
-    for lo, hi in zip(breaks[:-1], breaks[1:]):
-        e = resid[lo:hi] - resid[lo:hi].mean()
-        num += float(e[1:] @ e[:-1])
-        den += float(e @ e)
-    rho = num / den if den > 0 else 0.0
-    inflate = (1 + rho) / (1 - rho) if 0 < rho < 1 else 1.0
-    n_eff = max(n / inflate, p + 1.0)
-    q = float(student_t.ppf(0.5 + level / 2, max(n_eff - p, 1)))
-    # Columns scaled to unit norm: the raw J^T J spans ~20 decades and a plain
-    # inverse loses the weakly determined directions.
-    norm = np.linalg.norm(jac, axis=0)
-    norm = np.where(norm > 0, norm, 1.0)
-    js = jac / norm
-    inv = np.linalg.pinv(js.T @ js, rcond=1e-12, hermitian=True)
-    var = np.clip(np.diag(inv), 0, None) / norm**2
-    ci = q * np.sqrt(s2 * inflate * var)
-    ci_floor = q * np.sqrt(max(s2, floor**2) * inflate * var)
-    return ci, ci_floor, rho
-
-
-def stored_form(x: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Rate-form vectors (..., 20) as they come back from a parameter file.
-
-    The file holds the paper form (b fixed) to 6 significant digits
-    (`isp_twin.model.parameters.save_parameters`); this applies the same rounding.
-    """
-    x = RATE_LAYOUT.as_table(np.asarray(x, dtype=float))
-    levels = [RATE_LAYOUT.field_index(f) for f in ("gain", "static", "coulomb")]
-    alpha = RATE_LAYOUT.field_index("alpha")
-    paper = x.copy()
-    paper[..., levels] = x[..., levels] / DEG / b[:, None]
-    paper[..., alpha] = x[..., alpha] * DEG
-    rounded = np.vectorize(lambda v: float(f"{v:.6g}"))(paper)
-    out = rounded.copy()
-    out[..., levels] = rounded[..., levels] * DEG * b[:, None]
-    out[..., alpha] = rounded[..., alpha] / DEG
-    return RATE_LAYOUT.from_table(out)
-
-
 def _robust_to_storage(x: np.ndarray, cost, free: np.ndarray, b: np.ndarray, step: float = 1e-4):
     """A point whose stored (rounded) form keeps the fit; (x, moved?).
 
@@ -1546,13 +1498,13 @@ def _intervals(
     e, j = e_all[0], ((e_all[1:] - e_all[0]) / h[:, None]).T
     breaks = list(np.cumsum([0] + [len(d) - 1 for d in data]))
     scale = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
-    ci_f, ci_floor_f, rho = _confidence(j, e, breaks, search.s.confidence, _REFERENCE_NOISE * scale)
+    iv = confidence_intervals(j, e, breaks, search.s.confidence, _REFERENCE_NOISE * scale)
     ci = np.full(RATE_LAYOUT.size, np.nan)
     ident = np.zeros(RATE_LAYOUT.size, dtype=bool)
     sensitive = np.linalg.norm(j, axis=0) > 0
-    ident[mask] = sensitive & (ci_floor_f < _MAX_RELATIVE_CI * np.abs(x_best))
-    ci[mask] = np.where(ident[mask], ci_f, np.nan)
-    return e, ci, ident, float(rho)
+    ident[mask] = sensitive & (iv.at_floor < _MAX_RELATIVE_CI * np.abs(x_best))
+    ci[mask] = np.where(ident[mask], iv.half_width, np.nan)
+    return e, ci, ident, iv.rho
 
 
 def _outcome(search: _Search, cost: float) -> IdentificationStatus:
@@ -1613,39 +1565,20 @@ def _result(
 
 
 def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = "") -> AxisParams:
-    """The paper form (Table 2) of a result, b fixed to the prior's b.
+    """The parameter file's axis of a result (`isp_twin.estimation.parameter_file.fitted_axis`).
 
-    Ke = b·Ke / b etc.; the half-widths scale the same way (b carries no
-    uncertainty: it is fixed). Regimes not identified keep the prior values;
-    the prior's effects are kept (they were part of the fitted model). The
-    model and read-out timing of the fit are recorded (`fitted_with`).
+    Regimes not identified keep the prior values; the prior's effects are
+    kept (they were part of the fitted model); the model and read-out timing
+    of the fit are recorded (`fitted_with`).
     """
-    b = tuple(r.b for r in prior.regimes)
-    regimes = list(result.rate.to_regimes(b))
-    ci_rate = RateParams.from_vector(result.ci95)
-    ci_regimes: list[RegimeParams | None] = []
-    for r in range(RATE_LAYOUT.n_regimes):
-        if not result.regime_identified[r]:
-            regimes[r] = prior.regimes[r]
-            ci_regimes.append(None)
-            continue
-        ci_regimes.append(
-            RegimeParams(
-                a=float(ci_rate.pole[r]),
-                b=float("nan"),
-                Ke=float(ci_rate.gain[r] / DEG / b[r]),
-                Ts=float(ci_rate.static[r] / DEG / b[r]),
-                Tc=float(ci_rate.coulomb[r] / DEG / b[r]),
-                alpha=float(ci_rate.alpha[r] * DEG),
-            )
-        )
-    return replace(
+    return fitted_axis(
         prior,
-        regimes=tuple(regimes),
-        ci95=tuple(ci_regimes),
+        result.vector,
+        result.ci95,
+        prior.effects,
+        fitted_with(result.integration, result.timing),
+        note or prior.note,
         identified=result.regime_identified,
-        note=note or prior.note,
-        fitted_with=fitted_with(result.integration, result.timing),
     )
 
 

@@ -32,9 +32,9 @@ class FitResult:
         x: best parameters, (n,).
         residual: residuals at x, (M,).
         sse: sum of squared residuals at x.
-        jacobian: d residual / d x at the last linearisation point, (M, n).
-        cov: Gauss-Newton covariance sse/(M-n) * (J^T J)^-1, (n, n) (optimistic
-            when the residuals are correlated).
+        jacobian: d residual / d x at the last linearisation point, (M, n)
+            (zero columns where the model could not be simulated beside x);
+            the intervals come from it (`isp_twin.estimation.intervals`).
         status: why it stopped.
         sse_log: sse after each iteration.
     """
@@ -43,14 +43,8 @@ class FitResult:
     residual: np.ndarray
     sse: float
     jacobian: np.ndarray
-    cov: np.ndarray
     status: FitStatus
     sse_log: tuple[float, ...]
-
-    @property
-    def ci95(self) -> np.ndarray:
-        """95 % confidence half-widths, (n,)."""
-        return 1.96 * np.sqrt(np.maximum(np.diag(self.cov), 0.0))
 
 
 def lm_steps(
@@ -75,27 +69,43 @@ def lm_steps(
     finite difference does not see.
     """
     x = np.clip(np.asarray(x0, float), lower, upper)
-    n = x.size
     r = (yield x[None])[0]
     sse = float(r @ r)
     if len(scan):
-        factors = np.asarray(scan_factors, float)
-        pts = np.repeat(x[None], len(scan) * factors.size, axis=0)
-        for j, i in enumerate(scan):
-            pts[j * factors.size : (j + 1) * factors.size, i] = x[i] * factors
-        pts = np.clip(pts, lower, upper)
-        rs = yield pts
-        sses = np.einsum("ij,ij->i", rs, rs).reshape(len(scan), factors.size)
-        sses = np.where(np.isfinite(sses), sses, np.inf)
-        trial = x.copy()
-        for j, i in enumerate(scan):
-            k = int(np.argmin(sses[j]))
-            if sses[j, k] < sse:
-                trial[i] = pts[j * factors.size + k, i]
-        if np.any(trial != x):
-            rt = (yield trial[None])[0]
-            if float(rt @ rt) < sse:
-                x, r, sse = trial, rt, float(rt @ rt)
+        x, r, sse = yield from _scanned(x, r, sse, lower, upper, scan, scan_factors)
+    return (yield from _iterations(x, r, sse, lower, upper, scale, max_iter, rtol, rel_step))
+
+
+_Steps = Generator[np.ndarray, np.ndarray, tuple]
+
+
+def _scanned(x, r, sse, lower, upper, scan, scan_factors) -> _Steps:
+    """`lm_steps`' one-at-a-time scan of the parameters in `scan`; (x, r, sse) after it."""
+    factors = np.asarray(scan_factors, float)
+    pts = np.repeat(x[None], len(scan) * factors.size, axis=0)
+    for j, i in enumerate(scan):
+        pts[j * factors.size : (j + 1) * factors.size, i] = x[i] * factors
+    pts = np.clip(pts, lower, upper)
+    rs = yield pts
+    sses = np.einsum("ij,ij->i", rs, rs).reshape(len(scan), factors.size)
+    sses = np.where(np.isfinite(sses), sses, np.inf)
+    trial = x.copy()
+    for j, i in enumerate(scan):
+        k = int(np.argmin(sses[j]))
+        if sses[j, k] < sse:
+            trial[i] = pts[j * factors.size + k, i]
+    if np.any(trial != x):
+        rt = (yield trial[None])[0]
+        if float(rt @ rt) < sse:
+            x, r, sse = trial, rt, float(rt @ rt)
+    return x, r, sse
+
+
+def _iterations(
+    x, r, sse, lower, upper, scale, max_iter, rtol, rel_step
+) -> Generator[np.ndarray, np.ndarray, FitResult]:
+    """`lm_steps`' damped Gauss-Newton iterations from x (three dampings tried per iteration)."""
+    n = x.size
     lam = 1e-2
     log = []
     status = FitStatus.MAX_ITERATIONS
@@ -104,29 +114,9 @@ def lm_steps(
         if n == 0:
             status = FitStatus.CONVERGED
             break
-        h = rel_step * scale
-        step = np.where(x + h <= upper, h, -h)
-        pts = x[None] + np.diag(step)
-        jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)
-        # A finite-difference point the model cannot simulate (a candidate
-        # that diverges there) gives no slope: that parameter stays put this
-        # iteration and, if it never gets one, has no interval.
-        jac[:, ~np.all(np.isfinite(jac), axis=0)] = 0.0
-        js = jac * scale  # scaled variables
-        with np.errstate(over="ignore", invalid="ignore"):  # steep slopes: see the covariance
-            a = js.T @ js
-            g = js.T @ r
-        diag = np.diag(a).copy()
-        diag[diag <= 0] = 1.0
+        jac = yield from _jacobian(x, r, scale, upper, rel_step)
         lams = lam * np.array([0.1, 1.0, 10.0])
-        trials = []
-        for lm in lams:
-            try:
-                dz = -np.linalg.solve(a + lm * np.diag(diag) + 1e-12 * np.eye(n), g)
-            except np.linalg.LinAlgError:
-                dz = -np.linalg.lstsq(a + lm * np.diag(diag), g, rcond=None)[0]
-            trials.append(np.clip(x + dz * scale, lower, upper))
-        trials = np.array(trials)
+        trials = _damped_steps(jac, r, x, scale, lower, upper, lams)
         rt = yield trials
         sses = np.einsum("ij,ij->i", rt, rt)
         sses = np.where(np.isfinite(sses), sses, np.inf)  # a diverged trial is no step
@@ -145,22 +135,39 @@ def lm_steps(
             if lam > 1e8:
                 status = FitStatus.NO_PROGRESS
                 break
-    m = r.size
-    js = jac * scale
-    sigma2 = sse / max(m - n, 1)
-    try:
-        with np.errstate(over="ignore", invalid="ignore"):
-            cov_s = sigma2 * np.linalg.pinv(js.T @ js) if n else np.zeros((0, 0))
-    except np.linalg.LinAlgError:
-        # Slopes so steep (a candidate near divergence) that the SVD fails:
-        # the parameters are not determined, which the caller reports.
-        cov_s = np.full((n, n), np.nan)
-    cov = cov_s * np.outer(scale, scale)
-    # A parameter the data never touch (an unvisited regime) has no interval.
-    blind = ~np.any(jac != 0.0, axis=0)
-    cov[blind, :] = np.nan
-    cov[:, blind] = np.nan
-    return FitResult(x, r, sse, jac, cov, status, tuple(log))
+    return FitResult(x, r, sse, jac, status, tuple(log))
+
+
+def _jacobian(x, r, scale, upper, rel_step) -> Generator[np.ndarray, np.ndarray, np.ndarray]:
+    """Forward differences at x (one batched evaluation), (M, n)."""
+    h = rel_step * scale
+    step = np.where(x + h <= upper, h, -h)
+    pts = x[None] + np.diag(step)
+    jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)
+    # A finite-difference point the model cannot simulate (a candidate
+    # that diverges there) gives no slope: that parameter stays put this
+    # iteration and, if it never gets one, has no interval (a zero column).
+    jac[:, ~np.all(np.isfinite(jac), axis=0)] = 0.0
+    return jac
+
+
+def _damped_steps(jac, r, x, scale, lower, upper, lams) -> np.ndarray:
+    """The Levenberg-Marquardt steps from x for each damping in `lams`, clipped: (len(lams), n)."""
+    n = x.size
+    js = jac * scale  # scaled variables
+    with np.errstate(over="ignore", invalid="ignore"):  # steep slopes: no interval later
+        a = js.T @ js
+        g = js.T @ r
+    diag = np.diag(a).copy()
+    diag[diag <= 0] = 1.0
+    trials = []
+    for lm in lams:
+        try:
+            dz = -np.linalg.solve(a + lm * np.diag(diag) + 1e-12 * np.eye(n), g)
+        except np.linalg.LinAlgError:
+            dz = -np.linalg.lstsq(a + lm * np.diag(diag), g, rcond=None)[0]
+        trials.append(np.clip(x + dz * scale, lower, upper))
+    return np.array(trials)
 
 
 def solve_many(
