@@ -203,11 +203,33 @@ def test_lugre_bristles_act_as_coulomb_in_steady_sliding_and_turn_round_over_the
     # Reverse at -0.1 rad/s: the bristle force flips sign once the axis has
     # travelled a few pre-sliding distances (z relaxes as exp(-x/z_max)).
     forces = np.array([e.acceleration(0.0, -0.1) for _ in range(400)])
-    assert forces[0] == pytest.approx(-12.0, rel=1e-3)  # still bent the old way
+    # Still bent the old way: the first sample's force is the mean of the
+    # relaxing z over it, -12 (2 (1 - exp(-s)) / s - 1) with s = 0.1 T / z_max.
+    s = 0.1 * DT / 0.003
+    assert forces[0] == pytest.approx(-12.0 * (2.0 * (1.0 - np.exp(-s)) / s - 1.0), rel=1e-9)
     travel_at_zero = (np.argmax(forces > 0) + 1) * 0.1 * DT
     assert travel_at_zero == pytest.approx(0.003 * np.log(2), rel=0.1)
     assert forces[-1] == pytest.approx(12.0, rel=1e-3)
     assert e.acceleration(0.0, 0.0) == 0.0  # at rest the bristles belong to stiction
+
+
+def test_lugre_force_is_the_mean_of_the_bristle_force_over_the_sample():
+    """The force held over a sample is the exact mean of ``-accel z(t)/z_max``
+    for the rate held, also where the bristles turn round within the sample
+    (travel per sample > z_max): checked against the state equation
+    ``dz/dt = v - |v| z / z_max`` integrated by fine Euler steps."""
+    accel, zmax = 12.0, 3e-4
+    e = make_effect(EffectSpec("lugre", {"accel_rad_s2": accel, "presliding_rad": zmax}), DT)
+    z = 0.0
+    for rate in (0.05, 0.05, -1.0, -0.2, 0.4, 0.01):  # travel/z_max per sample 0.03 to 3.3
+        fine = 20000
+        h = DT / fine
+        forces = np.empty(fine)
+        for i in range(fine):  # midpoint rule on the fine grid
+            z_mid = z + 0.5 * h * (rate - abs(rate) * z / zmax)
+            forces[i] = -accel * z_mid / zmax
+            z += h * (rate - abs(rate) * z_mid / zmax)
+        assert e.acceleration(0.0, rate) == pytest.approx(forces.mean(), rel=1e-6, abs=1e-9)
 
 
 def test_resonance_rings_at_its_damped_frequency_and_decays_at_its_damping():

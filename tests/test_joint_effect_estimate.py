@@ -45,7 +45,7 @@ def _wrapped(a: float, b: float) -> float:
     return abs(math.remainder(a - b, 2 * math.pi))
 
 
-@pytest.fixture(scope="module", params=["cogging", "unbalance", "cable_spring", "input_delay"])
+@pytest.fixture(scope="module", params=["cogging", "unbalance", "cable_spring", "input_delay", "lugre"])
 def case(request):
     runs, true, sigma = _runs(request.param)
     base = equation_error_estimate(runs, _unit_prior())
@@ -60,6 +60,8 @@ def case(request):
         # per-direction friction levels: held at the given value.
         "cable_spring": {"stiffness_1_s2": 0.0, "offset_rad_s2": true.get("offset_rad_s2", 0.0)},
         "input_delay": {"delay_s": 0.0},
+        # Pre-sliding distance on a grid, bristle force linear for each.
+        "lugre": {"accel_rad_s2": 0.0, "presliding_rad": 1e-3},
     }[request.param]
     est = joint_equation_error_estimate(runs, base, EffectSpec(request.param, start))
     return request.param, runs, true, sigma, base, est.rate, est.effect
@@ -83,6 +85,9 @@ def test_the_effect_is_recovered_within_the_issues_tolerances(case):
         assert _wrapped(got["phase_rad"], true["phase_rad"]) < 0.1
     elif name == "cable_spring":
         assert got["stiffness_1_s2"] == pytest.approx(true["stiffness_1_s2"], rel=0.1)
+    elif name == "lugre":
+        assert got["accel_rad_s2"] == pytest.approx(true["accel_rad_s2"], rel=0.1)
+        assert got["presliding_rad"] == pytest.approx(true["presliding_rad"], rel=0.1)
     else:
         assert abs(got["delay_s"] - true["delay_s"]) <= 1e-3
 

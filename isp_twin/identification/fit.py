@@ -64,7 +64,7 @@ from isp_twin.estimation.intervals import confidence_intervals
 from isp_twin.estimation.parameter_file import fitted_axis, stored_form
 from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.identification.measured import MeasuredData
-from isp_twin.model.effects import Effect, make_effect
+from isp_twin.model.effects import Effect, effect_class, make_effect
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.friction import regime_index
 from isp_twin.model.parameters import (
@@ -583,6 +583,11 @@ def _fit_regime(table: np.ndarray, grid: np.ndarray) -> tuple[float, ...]:
 #: Effects whose acceleration is linear in its strengths for given shape
 #: parameters: name -> (shape parameters searched on a grid, strength columns).
 _LINEAR_TORQUES = ("cogging", "unbalance", "cable_spring")
+#: Effects whose acceleration is linear in one strength for a given state
+#: parameter, that parameter searched on a grid: LuGre's bristle force
+#: ``accel_rad_s2`` for each pre-sliding distance ``presliding_rad``
+#: (`_joint_lugre_pass`).
+_STATE_TORQUES = ("lugre",)
 #: Effects acting on the command, their one parameter searched on a grid.
 _COMMAND_EFFECTS = {
     "input_delay": "delay_s",
@@ -647,7 +652,7 @@ def _regression_rows(data, side_source, rest, effects) -> _Rows:
 
 
 #: Effects `joint_equation_error_estimate` estimates with the base.
-JOINT_FORMS: tuple[str, ...] = _LINEAR_TORQUES + tuple(_COMMAND_EFFECTS)
+JOINT_FORMS: tuple[str, ...] = _LINEAR_TORQUES + tuple(_COMMAND_EFFECTS) + _STATE_TORQUES
 
 
 @dataclass(frozen=True)
@@ -697,7 +702,7 @@ def joint_equation_error_estimate(
     name = candidate.name
     current = EffectSpec(name, dict(candidate.params))
     fixed = tuple(effects)
-    if name not in _LINEAR_TORQUES and name not in _COMMAND_EFFECTS:
+    if name not in JOINT_FORMS:
         x = equation_error_estimate(
             data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
         )
@@ -715,6 +720,8 @@ def joint_equation_error_estimate(
         alpha = RATE_LAYOUT.column(base.to_vector(), "alpha")
         if name in _LINEAR_TORQUES:
             sse, reg, params = _joint_torque_pass(problem, name, alpha, current.params)
+        elif name in _STATE_TORQUES:
+            sse, reg, params = _joint_lugre_pass(problem, data, side_source, alpha, current.params)
         else:
             sse, reg, params = _joint_command_pass(problem, data, name, alpha, current.params, cls)
         for i, r in enumerate(problem.regimes):
@@ -923,6 +930,63 @@ def _joint_torque_pass(
         params.update(amplitude_rad_s2=amp, phase_rad=ph)
     else:
         params.update(stiffness_1_s2=float(eff[0]))
+    return sse, reg, params
+
+
+#: Pre-sliding distances tried by `_joint_lugre_pass` [rad]: 15 per decade
+#: over the effect's range of interest (the reference draws 0.2-5 mrad).
+_LUGRE_PRESLIDING_GRID = np.geomspace(2e-5, 2e-2, 46)
+
+
+def _lugre_columns(data, zmax: np.ndarray, side_source: str) -> np.ndarray:
+    """LuGre's acceleration per unit bristle force along the measured runs,
+    times T, for each pre-sliding distance: (sum N-1, G).
+
+    The library's own effect (`isp_twin.model.effects.lugre`) run on the
+    measured rate, one sample late as `simulate` feeds it (`_effect_drive`).
+    """
+    parts = []
+    for d in data:
+        eff = make_batched(
+            "lugre", {"accel_rad_s2": np.ones_like(zmax), "presliding_rad": zmax}, d.dt
+        )
+        y = side_angle(d, side_source)
+        col = np.empty((len(d) - 1, zmax.size))
+        for k in range(len(d) - 1):
+            col[k] = eff.acceleration(y[k], np.full(zmax.size, d.omega[k])) * d.dt
+        parts.append(col)
+    return np.concatenate(parts)
+
+
+def _joint_lugre_pass(
+    problem: _JointProblem, data, side_source: str, alpha: np.ndarray, params: dict[str, float]
+) -> tuple[float, np.ndarray, dict[str, float]]:
+    """LuGre with the base: the pre-sliding distance on a grid (`_LUGRE_PRESLIDING_GRID`
+    and the given value), the bristle force linear for each; (sse, regimes, params).
+
+    In steady sliding the bristle force is a constant per direction, exactly
+    a shift of the Coulomb levels; what sets it apart is the turn-round over
+    about ``z_max`` of travel after each reversal or breakaway, which the
+    rows after a reversal hold. A negative force is not physical: such grid
+    points are skipped (the given parameters are kept when all are).
+    """
+    rows, params = problem.rows, dict(params)
+    grid = np.union1d(_LUGRE_PRESLIDING_GRID, [params["presliding_rad"]])
+    lo_b, hi_b = effect_class("lugre").bounds["presliding_rad"]
+    grid = grid[(grid >= lo_b) & (grid <= hi_b)]
+    columns = _lugre_columns(data, grid, side_source)[rows.step]
+    u0 = problem.u_all[rows.step]
+    cols = _fixed_columns(problem, alpha, rows.w1)
+    best = None
+    for i, zmax in enumerate(grid):
+        sse, reg, eff = _solve_block(problem, cols, u0, columns[:, i : i + 1])
+        if eff[0] > 0.0 and (best is None or sse < best[0]):
+            best = (sse, reg, eff, zmax)
+    if best is None:
+        sse, reg, _ = _solve_block(problem, cols, u0, np.zeros((rows.w0.size, 0)))
+        return sse, reg, params
+    sse, reg, eff, zmax = best
+    params.update(accel_rad_s2=float(eff[0]), presliding_rad=float(zmax))
     return sse, reg, params
 
 

@@ -219,14 +219,27 @@ class GyroError:
 class PayloadMode:
     """A flexible payload: a second inertia J2 on a spring-damper (two-mass model).
 
-    The motor side (inertia J - J2, with friction) drives the payload through
-    the spring k and damper c; the gyro sits on the payload. Relative to the
-    motor side the payload's deflection x obeys
-    ``x'' + (c/J2) x' + (k/J2) x = -w1'`` exactly, which is the project's
-    `resonance` effect with ``freq_hz = sqrt(k/J2) / 2 pi``,
-    ``damping_ratio = c / (2 sqrt(k J2))`` and ``coupling = 1``. The project's
-    effect ignores the reaction ``k x + c x'`` on the motor side (it is of order
-    J2/J); the coupled free mode is at ``sqrt(k (1/J1 + 1/J2))``.
+    The motor side (inertia J1 = J - J2, with friction) drives the payload
+    through the spring k and damper c; the gyro sits on the payload, the
+    resolver on the motor side. In the centre-of-mass rate
+    ``w = (J1 w1 + J2 w2) / J`` (``J w' =`` the external torques: the spring is
+    internal) and ``y = (J1 / J) x`` with ``x`` the payload's deflection from
+    the motor side, the two-mass equations are exactly
+    ``y'' + (c/mu) y' + (k/mu) y = -w'`` with ``mu = J1 J2 / J``, and the gyro
+    reads ``w2 = w + y'``: the project's `resonance` effect on a rigid axis of
+    inertia J, with ``freq_hz = sqrt(k/mu) / 2 pi`` (the free two-mass mode),
+    ``damping_ratio = c / (2 sqrt(k mu))`` and ``coupling = 1`` (`truth`).
+    What the project's model does not hold: friction and stick act on the
+    motor side's rate ``w1 = w - (J2/J1) y'``, not on w (a motor side held by
+    stiction lets the payload ring at the clamped frequency sqrt(k/J2)), and
+    the resolver reads ``theta1 = theta - (J2/J1) y``.
+
+    Before issue 8's resonance work `truth` gave the clamped frequency
+    sqrt(k/J2) and c / (2 sqrt(k J2)) (the payload equation in the motor
+    side's acceleration, the reaction on the motor left out): on reference
+    dev seeds 1000-1003 the library with the true rate form and those values
+    was further from the data than with no resonance at all
+    (docs/diagnosis.md, "Resonance and LuGre on reference axes").
 
     Attributes:
         payload_fraction: J2 / J [1], 0 < f < 1.
@@ -258,10 +271,12 @@ class PayloadMode:
         return math.sqrt(self.stiffness_nm_rad * (1.0 / j1 + 1.0 / j2)) / (2.0 * math.pi)
 
     def truth(self, inertia_kg_m2: float) -> dict[str, float]:
+        """The free mode in the project's `resonance` parameters (class doc)."""
         j2 = self.payload_fraction * inertia_kg_m2
+        mu = (inertia_kg_m2 - j2) * j2 / inertia_kg_m2
         return {
-            "freq_hz": self.clamped_freq_hz(inertia_kg_m2),
-            "damping_ratio": self.damping_nm_s_rad / (2.0 * math.sqrt(self.stiffness_nm_rad * j2)),
+            "freq_hz": self.free_freq_hz(inertia_kg_m2),
+            "damping_ratio": self.damping_nm_s_rad / (2.0 * math.sqrt(self.stiffness_nm_rad * mu)),
             "coupling": 1.0,
         }
 
