@@ -45,7 +45,9 @@ def _wrapped(a: float, b: float) -> float:
     return abs(math.remainder(a - b, 2 * math.pi))
 
 
-@pytest.fixture(scope="module", params=["cogging", "unbalance", "cable_spring", "input_delay", "lugre"])
+@pytest.fixture(
+    scope="module", params=["cogging", "unbalance", "cable_spring", "input_delay", "lugre"]
+)
 def case(request):
     runs, true, sigma = _runs(request.param)
     base = equation_error_estimate(runs, _unit_prior())

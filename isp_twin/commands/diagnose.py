@@ -246,6 +246,13 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
     builtins.print(result["verdict"])
     if diag.selected_effect == "none":
         say("no missing effect found")
+        off = diag.implied_torque_offset
+        if off is not None and off.consistent and abs(off.value_rad_s2) > off.ci95:
+            say(
+                f"equivalent: a constant torque of {off.value_rad_s2:.4g} ± {off.ci95:.2g} rad/s^2 "
+                "(torque / J) is what the per-direction friction levels imply, the same on "
+                "both sides (the data cannot tell it from asymmetric friction)"
+            )
         if result["refit_adopted"]:
             say(
                 "(the parameters re-identified without a new effect fit significantly better: "

@@ -95,8 +95,10 @@ from isp_twin.identification.fit import (
     side_angle,
 )
 from isp_twin.identification.fit import Settings as IdSettings
+from isp_twin.identification.gyro_error import sensor_bias_joint_estimate
 from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
 from isp_twin.model.effects import EFFECTS, effect_class
+from isp_twin.model.effects.torque_offset import ImpliedOffset, implied_offset
 from isp_twin.model.parameters import (
     RATE_LAYOUT,
     AxisParams,
@@ -133,6 +135,8 @@ JOINT_ITER = 8
 
 #: Effects the data of a small travel barely tell apart: restarted together.
 ALIKE: tuple[tuple[str, str], ...] = (("cable_spring", "unbalance"),)
+#: The gyro error, estimated against the angle sensor (`identification.gyro_error`).
+SENSOR_BIAS = "sensor_bias"
 
 #: The candidate effects, in report order: the registry's.
 LIBRARY: tuple[str, ...] = tuple(EFFECTS)
@@ -216,6 +220,7 @@ class Diagnosis:
     timing: Timing = Timing()
     integration: Integration = DEFAULT_INTEGRATION
     equivalent: tuple[str, ...] = ()
+    implied_torque_offset: ImpliedOffset | None = None
 
     @property
     def accepted(self) -> tuple[CandidateFit, ...]:
@@ -275,6 +280,7 @@ class Diagnosis:
             ),
             "tentative_effects": list(self.tentative),
             "equivalent_effects": list(self.equivalent),
+            "equivalent_torque_offset": _offset_json(self.implied_torque_offset),
         }
 
     def _model_json(self) -> dict:
@@ -320,6 +326,23 @@ class Diagnosis:
             "noise_floor": self.noise_floor,
             "holdout": list(self.holdout_names),
         }
+
+
+def _offset_json(o: ImpliedOffset | None) -> dict | None:
+    """The constant torque the levels of the answer `none` imply (`implied_offset`)."""
+    if o is None:
+        return None
+    return {
+        "accel_rad_s2": o.value_rad_s2,
+        "ci95_rad_s2": o.ci95,
+        "right_side_rad_s2": o.right_rad_s2,
+        "right_ci95_rad_s2": o.right_ci95,
+        "left_side_rad_s2": o.left_rad_s2,
+        "left_ci95_rad_s2": o.left_ci95,
+        "consistent": o.consistent,
+        "meaning": "(Tc- - Tc+)/(2 J) of the model without an effect: a constant torque is "
+        "exactly this shift of the per-direction levels, plus the bearings' own asymmetry",
+    }
 
 
 def _rms(parts) -> float:
@@ -948,6 +971,20 @@ def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
         timing=data.timing,
         integration=data.integration,
         equivalent=equivalent,
+        implied_torque_offset=None if accepted else _implied_offset(first.baseline, data),
+    )
+
+
+def _implied_offset(base: CandidateFit, data: _Data) -> ImpliedOffset:
+    """The constant torque the refit without an effect implies through its
+    per-direction levels (a torque offset is exactly such a shift)."""
+    x, ci = base.rate_vector, base.rate_ci95
+    return implied_offset(
+        RATE_LAYOUT.column(x, "pole"),
+        RATE_LAYOUT.column(x, "coulomb"),
+        RATE_LAYOUT.column(ci, "coulomb"),
+        data.train.dt,
+        data.integration.exact_effect_hold,
     )
 
 
@@ -971,7 +1008,9 @@ def _joint_starts(raw_runs, side_source, fits, names, x_base) -> dict[str, Joint
     """Base and effect estimated together for each candidate that has a joint
     form (`joint_equation_error_estimate`; shape parameters such as the
     cogging period from the candidate's local fit), and the base alone
-    (`BASELINE`, the equation-error start without the effect)."""
+    (`BASELINE`, the equation-error start without the effect). `sensor_bias`
+    starts from the gyro error measured against the angle
+    (`sensor_bias_joint_estimate`)."""
     fixed = next(iter(fits.values())).fixed if fits else ()
     prior = RateParams.from_vector(x_base)
     out = {
@@ -981,6 +1020,13 @@ def _joint_starts(raw_runs, side_source, fits, names, x_base) -> dict[str, Joint
         for n in names
         if n in JOINT_FORMS
     }
+    if SENSOR_BIAS in names:
+        # The gyro error measured against the angle, the base's rate
+        # parameters mapped back to the true rate (only where the angle
+        # shows a gyro error).
+        gyro = sensor_bias_joint_estimate(raw_runs, prior)
+        if gyro is not None:
+            out[SENSOR_BIAS] = gyro
     base = equation_error_estimate(raw_runs, prior, side_source, effects=fixed)
     out[BASELINE] = JointEstimate(base, None, float("nan"), float("nan"))
     return out
@@ -1015,6 +1061,10 @@ def _leaders(verdicts, failed, starts, top: int) -> list[str]:
     for n in sorted(gains, key=gains.get, reverse=True)[:top]:
         if n not in lead:
             lead.append(n)
+    if SENSOR_BIAS in starts and SENSOR_BIAS not in lead:
+        # Its start exists only where the angle shows a gyro error
+        # (`_joint_starts`): evidence apart from any rate fit.
+        lead.append(SENSOR_BIAS)
     # Over a small travel an unbalance is a spring (sin y ~ y): where one
     # leads, its local refit may have taken what the other explains, so both
     # are restarted and compete after the same restart.
