@@ -691,13 +691,9 @@ def joint_equation_error_estimate(
     `candidate` held, base re-estimated.
 
     Alphas and effect are estimated in turn `passes` times (alphas with the
-    effect held, then the block problem). With `integration`'s exact effect
-    hold a torque moves the rate per sample by ``accel*T*(1 - a)/(-ln a)``,
-    as it does in the data of a continuous axis; the torque columns carry
-    that factor at each regime's pole (`_hold_factor`), else a strength
-    comes out low by it on a fast axis. Returns the rate parameters, the
-    candidate with the estimated parameters (others as given) and both
-    equation-error costs (`JointEstimate`).
+    effect held, then the block problem; torque columns with `integration`'s
+    hold, `_hold_factor`). Returns the rate parameters, the candidate with the
+    estimated parameters (others as given) and both costs (`JointEstimate`).
     """
     name = candidate.name
     current = EffectSpec(name, dict(candidate.params))
@@ -897,7 +893,11 @@ def _solve_block(problem: _JointProblem, cols: _FixedColumns, u0: np.ndarray, ex
 def _hold_factor(pole: np.ndarray, integration: Integration) -> np.ndarray:
     """Per regime, what a constant acceleration held over a sample moves the
     rate by, over accel*T: ``(1 - a)/(-ln a)`` at the regime's pole a with
-    `integration`'s exact effect hold, else 1 (Eq. 6's ``accel*T``), (n_regimes,)."""
+    `integration`'s exact effect hold, else 1 (Eq. 6's ``accel*T``), (n_regimes,).
+
+    A continuous axis moves the rate by that much, so without it a joint
+    estimate's strength comes out low by it on a fast axis.
+    """
     if not integration.exact_effect_hold:
         return np.ones_like(pole)
     a = np.clip(pole, 1e-6, 1.0 - 1e-12)
