@@ -137,6 +137,10 @@ JOINT_ITER = 8
 ALIKE: tuple[tuple[str, str], ...] = (("cable_spring", "unbalance"),)
 #: The gyro error, estimated against the angle sensor (`identification.gyro_error`).
 SENSOR_BIAS = "sensor_bias"
+#: Torque effects whose leader, when not at the noise after the joint
+#: restarts, gets `identify`'s global step with the effect held at its joint
+#: equation-error estimate (`_torque_global_stage`).
+TORQUE_GLOBAL: tuple[str, ...] = ("cogging", "unbalance", "cable_spring")
 
 #: The candidate effects, in report order: the registry's.
 LIBRARY: tuple[str, ...] = tuple(EFFECTS)
@@ -833,7 +837,9 @@ def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdic
     # Base and effect estimated together for the leaders (by local held-out
     # error and by the joint equation-error gain), the base restarted the
     # same way (`_joint_restarts`); then judged again.
-    starts = _joint_starts(data.runs.raw, data.side_source, st.fits, remaining, x_current)
+    starts = _joint_starts(
+        data.runs.raw, data.side_source, st.fits, remaining, x_current, data.train.integration
+    )
     lead = _leaders(verdicts, st.failed, starts, JOINT_TOP)
     again = _joint_restarts(
         data.train, {n: starts[n] for n in lead + [BASELINE] if n in starts}, fixed
@@ -855,6 +861,8 @@ def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdic
         st.update(data, better)
         verdicts = st.judged_again(verdicts, better)
     top = [v.name for v in verdicts if v.significant][:1]
+    if top and top[0] in TORQUE_GLOBAL:
+        return _torque_global_stage(data, st, verdicts, starts, top[0])
     if top and top[0] in better and _rms(st.held_of[top[0]]) > CONVERGED_RATIO * st.floor:
         # Not at the noise yet: the leader's rate parameters identified
         # again with `identify`'s global method, its effect (now
@@ -866,6 +874,28 @@ def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdic
             st.update(data, {n: g})
             verdicts = st.judged_again(verdicts, {n: g})
     return verdicts
+
+
+def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
+    """Round 1, a torque effect leading (`TORQUE_GLOBAL`) but not at the noise:
+    its rate parameters searched again globally with the effect held at its
+    joint equation-error estimate.
+
+    The joint estimate comes from the data alone, not from a base that
+    absorbed the effect, so it holds the effect where the local or
+    restarted refit may have bent it to fit the distorted friction levels;
+    identify's global step then moves the rate parameters out of the
+    base's basin (`_refit_globally`), and rate and effect are polished
+    together. Kept where the training cost drops, then judged again.
+    """
+    if _rms(st.held_of[top]) <= CONVERGED_RATIO * st.floor:
+        return verdicts
+    held = dict(starts[top].effect.params) if top in starts else None
+    g = _refit_globally(data, st.fits[top], held)
+    if not g.sse < st.fits[top].sse:
+        return verdicts
+    st.update(data, {top: g})
+    return st.judged_again(verdicts, {top: g})
 
 
 def _reopen_stage(data, st, verdicts) -> list[Verdict]:
@@ -1004,7 +1034,9 @@ def _set_aside_tentative(rounds) -> tuple[list, list, tuple[str, ...]]:
     return rounds, accepted, ()
 
 
-def _joint_starts(raw_runs, side_source, fits, names, x_base) -> dict[str, JointEstimate]:
+def _joint_starts(
+    raw_runs, side_source, fits, names, x_base, integration=DEFAULT_INTEGRATION
+) -> dict[str, JointEstimate]:
     """Base and effect estimated together for each candidate that has a joint
     form (`joint_equation_error_estimate`; shape parameters such as the
     cogging period from the candidate's local fit), and the base alone
@@ -1015,7 +1047,12 @@ def _joint_starts(raw_runs, side_source, fits, names, x_base) -> dict[str, Joint
     prior = RateParams.from_vector(x_base)
     out = {
         n: joint_equation_error_estimate(
-            raw_runs, prior, EffectSpec(n, dict(fits[n].params)), side_source, effects=fixed
+            raw_runs,
+            prior,
+            EffectSpec(n, dict(fits[n].params)),
+            side_source,
+            effects=fixed,
+            integration=integration,
         )
         for n in names
         if n in JOINT_FORMS
@@ -1138,10 +1175,15 @@ def _reopen_rates(
     return best
 
 
-def _refit_globally(data: _Data, fit: CandidateFit) -> CandidateFit:
+def _refit_globally(data: _Data, fit: CandidateFit, held: dict | None = None) -> CandidateFit:
     """`fit`'s rate parameters identified again with its effects held (`identify`),
-    then rate and effect parameters polished together."""
-    held_ax = replace(data.ax, effects=fit.effects())
+    then rate and effect parameters polished together.
+
+    `held`: the candidate effect's parameters to hold in the global step
+    and start the polish from (default: `fit`'s own).
+    """
+    params = dict(fit.params) if held is None else dict(held)
+    held_ax = replace(data.ax, effects=tuple(fit.fixed) + (EffectSpec(fit.name, params),))
     again = identify(
         data.runs.raw,
         held_ax,
@@ -1157,7 +1199,7 @@ def _refit_globally(data: _Data, fit: CandidateFit) -> CandidateFit:
         again.vector,
         [fit.name],
         fit.fixed,
-        starts={fit.name: dict(fit.params)},
+        starts={fit.name: params},
         max_iter=data.max_iter,
     )[fit.name]
 

@@ -681,6 +681,7 @@ def joint_equation_error_estimate(
     min_samples: int = 50,
     effects: Sequence[EffectSpec] = (),
     passes: int = 2,
+    integration: Integration = DEFAULT_INTEGRATION,
 ) -> JointEstimate:
     """Base and candidate effect estimated together by one-step-ahead least squares.
 
@@ -695,9 +696,9 @@ def joint_equation_error_estimate(
     `candidate` held, base re-estimated.
 
     Alphas and effect are estimated in turn `passes` times (alphas with the
-    effect held, then the block problem). Returns the rate parameters, the
-    candidate with the estimated parameters (others as given) and both
-    equation-error costs (`JointEstimate`).
+    effect held, then the block problem; torque columns with `integration`'s
+    hold, `_hold_factor`). Returns the rate parameters, the candidate with the
+    estimated parameters (others as given) and both costs (`JointEstimate`).
     """
     name = candidate.name
     current = EffectSpec(name, dict(candidate.params))
@@ -718,12 +719,7 @@ def joint_equation_error_estimate(
             data, prior, side_source, rest_rate_deg_s, min_samples, fixed + (current,)
         )
         alpha = RATE_LAYOUT.column(base.to_vector(), "alpha")
-        if name in _LINEAR_TORQUES:
-            sse, reg, params = _joint_torque_pass(problem, name, alpha, current.params)
-        elif name in _STATE_TORQUES:
-            sse, reg, params = _joint_lugre_pass(problem, data, side_source, alpha, current.params)
-        else:
-            sse, reg, params = _joint_command_pass(problem, data, name, alpha, current.params, cls)
+        sse, reg, params = _joint_pass(problem, data, side_source, current, base, integration, cls)
         for i, r in enumerate(problem.regimes):
             a, g, c, s_minus_c = reg[i]
             a = min(max(a, 1e-6), 1.0 - 1e-9)
@@ -732,6 +728,19 @@ def joint_equation_error_estimate(
         current = EffectSpec(name, bounded)
     sse_base = _base_only_sse(problem, alpha)
     return JointEstimate(RateParams.from_vector(RATE_LAYOUT.from_table(x)), current, sse, sse_base)
+
+
+def _joint_pass(problem, data, side_source, current: EffectSpec, base, integration, cls):
+    """One pass of the joint estimate for `current`'s form (torque columns, a
+    state torque, or a command-side grid): (sse, per-regime regression, params)."""
+    name, params = current.name, current.params
+    alpha = RATE_LAYOUT.column(base.to_vector(), "alpha")
+    if name in _LINEAR_TORQUES:
+        hold = _hold_factor(RATE_LAYOUT.column(base.to_vector(), "pole"), integration)
+        return _joint_torque_pass(problem, name, alpha, params, hold)
+    if name in _STATE_TORQUES:
+        return _joint_lugre_pass(problem, data, side_source, alpha, params)
+    return _joint_command_pass(problem, data, name, alpha, params, cls)
 
 
 @dataclass(frozen=True)
@@ -895,8 +904,26 @@ def _solve_block(problem: _JointProblem, cols: _FixedColumns, u0: np.ndarray, ex
     return sse, reg, coef[nf + n_r :]
 
 
+def _hold_factor(pole: np.ndarray, integration: Integration) -> np.ndarray:
+    """Per regime, what a constant acceleration held over a sample moves the
+    rate by, over accel*T: ``(1 - a)/(-ln a)`` at the regime's pole a with
+    `integration`'s exact effect hold, else 1 (Eq. 6's ``accel*T``), (n_regimes,).
+
+    A continuous axis moves the rate by that much, so without it a joint
+    estimate's strength comes out low by it on a fast axis.
+    """
+    if not integration.exact_effect_hold:
+        return np.ones_like(pole)
+    a = np.clip(pole, 1e-6, 1.0 - 1e-12)
+    return (1.0 - a) / -np.log(a)
+
+
 def _joint_torque_pass(
-    problem: _JointProblem, name: str, alpha: np.ndarray, params: dict[str, float]
+    problem: _JointProblem,
+    name: str,
+    alpha: np.ndarray,
+    params: dict[str, float],
+    hold: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray, dict[str, float]]:
     """One block solve of a torque effect linear in its strengths; (sse, regimes, params).
 
@@ -904,12 +931,17 @@ def _joint_torque_pass(
     grid of +-3 % around the given one (a residual periodogram finds it; the
     strengths come from here), unbalance ``T (s sin y + c cos y)``, cable
     spring ``-T k y`` (its offset is a constant torque, exactly a shift of
-    the per-direction friction levels: held at the given value).
+    the per-direction friction levels: held at the given value). `hold`:
+    per regime, the rate change per sample of a unit acceleration over T
+    (`_hold_factor`; None: 1).
     """
     rows, dt, params = problem.rows, problem.dt, dict(params)
+    # Each row's torque columns scaled by its regime's hold factor: the
+    # strengths are then accelerations, as the model applies them.
+    row_hold = (np.ones(RATE_LAYOUT.n_regimes) if hold is None else hold)[rows.regime]
     w1 = rows.w1.copy()
     if name == "cable_spring":
-        w1 = w1 - dt * params["offset_rad_s2"]
+        w1 = w1 - dt * row_hold * params["offset_rad_s2"]
     u0 = problem.u_all[rows.step]
     if name == "cogging":
         shapes = params["period_rad"] * (1.0 + np.linspace(-0.03, 0.03, 61))
@@ -918,7 +950,8 @@ def _joint_torque_pass(
     cols = _fixed_columns(problem, alpha, w1)
     best = None
     for shape in shapes:
-        sse, reg, eff = _solve_block(problem, cols, u0, _torque_columns(name, rows.y, shape, dt))
+        extra = _torque_columns(name, rows.y, shape, dt) * row_hold[:, None]
+        sse, reg, eff = _solve_block(problem, cols, u0, extra)
         if best is None or sse < best[0]:
             best = (sse, reg, eff, shape)
     sse, reg, eff, shape = best
