@@ -28,10 +28,10 @@ import math
 
 import numpy as np
 import pytest
-from isp_twin.identification.verdict import CONVERGED_RATIO
 
 from isp_twin.cli import main
 from isp_twin.diagnosis.search import diagnose
+from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.fit import (
     equation_error_estimate,
     joint_equation_error_estimate,
