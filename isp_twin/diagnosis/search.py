@@ -435,24 +435,14 @@ def diagnose(
     again = _command_effect_read_out(diag, data) if joint else None
     if again is None:
         return diag
-    # The file's read-out was chosen by a base that absorbed a command
-    # effect: the effect and the base judged again at the read-out the
-    # effect's own fit chooses, kept only if the effect is then adopted (it
-    # is then the model the output file records, `Diagnosis.timing`).
-    data2, _, _ = _prepared(
-        _checked_inputs(runs, holdout, params, axis, candidates, side_source),
-        side_source,
-        seed,
-        integration,
-        again.timing,
-        base_search,
-        max_iter,
-        cv_iter,
-    )
-    name = again.effects[-1].name
+    # A tentative command effect judged again at its own read-out (kept if adopted).
+    checked = _checked_inputs(runs, holdout, params, axis, candidates, side_source)
+    data2 = _prepared(
+        checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
+    )[0]
     rnd = _round_at_read_out(data2, again.vector, again.effects[-1], tuple(data.ax.effects))
     diag2 = _final_diagnosis(data2, params, axis, [rnd], before_held)
-    return diag2 if diag2.selected_effect == name else diag
+    return diag2 if diag2.selected_effect == again.effects[-1].name else diag
 
 
 def _round_at_read_out(data: _Data, x: np.ndarray, effect: EffectSpec, fixed) -> RoundResult:
@@ -475,7 +465,9 @@ def _round_at_read_out(data: _Data, x: np.ndarray, effect: EffectSpec, fixed) ->
 def _command_effect_read_out(diag: Diagnosis, data: _Data) -> IdentificationResult | None:
     """`identify` with a tentative command effect held (`COMMAND_EFFECTS`),
     the read-out chosen again, when it chooses another gyro read-out than
-    the data's; else None.
+    the data's; else None. `diagnose` then judges base and effect again at
+    that read-out (`_round_at_read_out`) and keeps that diagnosis only if
+    the effect is adopted (the output file records that read-out).
 
     A dead zone or a delay absorbed by the friction levels and the pole
     leaves the file's read-out chosen by a distorted base (dev seed
