@@ -509,18 +509,7 @@ def _command_effect_read_out(diag: Diagnosis, data: _Data) -> IdentificationResu
     if not names or data.side_source != "measured":
         return None
     fit = diag.rounds[0].fits[names[0]]
-    held_ax = replace(data.ax, effects=fit.effects())
-    again = identify(
-        data.runs.raw,
-        held_ax,
-        IdSettings(
-            side_source=data.side_source,
-            seed=data.seed,
-            timing=None,
-            integration=data.train.integration,
-            generations=0,
-        ),
-    )
+    again = _identify_held(data, fit.effects(), timing=None, generations=0)
     return again if again.timing.gyro_average != data.timing.gyro_average else None
 
 
@@ -1247,17 +1236,8 @@ def _refit_globally(data: _Data, fit: CandidateFit, held: dict | None = None) ->
     and start the polish from (default: `fit`'s own).
     """
     params = dict(fit.params) if held is None else dict(held)
-    held_ax = replace(data.ax, effects=tuple(fit.fixed) + (EffectSpec(fit.name, params),))
-    again = identify(
-        data.runs.raw,
-        held_ax,
-        IdSettings(
-            side_source=data.side_source,
-            seed=data.seed,
-            timing=data.timing,
-            integration=data.train.integration,
-        ),
-    )
+    held = tuple(fit.fixed) + (EffectSpec(fit.name, params),)
+    again = _identify_held(data, held, timing=data.timing)
     return fit_candidates(
         data.train,
         again.vector,
@@ -1266,6 +1246,19 @@ def _refit_globally(data: _Data, fit: CandidateFit, held: dict | None = None) ->
         starts={fit.name: params},
         max_iter=data.max_iter,
     )[fit.name]
+
+
+def _identify_held(data: _Data, effects, timing, **options) -> IdentificationResult:
+    """`identify` on the training runs with `effects` held, at the read-out
+    `timing` (None: chosen again); `options`: further `IdSettings` fields."""
+    settings = IdSettings(
+        side_source=data.side_source,
+        seed=data.seed,
+        timing=timing,
+        integration=data.train.integration,
+        **options,
+    )
+    return identify(data.runs.raw, replace(data.ax, effects=tuple(effects)), settings)
 
 
 def _as_base(fit: CandidateFit, base: CandidateFit) -> CandidateFit:
