@@ -449,8 +449,9 @@ def diagnose(
         DataError: no runs, or a sample period that differs from the set's.
         ParameterError: unknown axis, candidate or side source.
     """
+    checked = _checked_inputs(runs, holdout, params, axis, candidates, side_source)
     data, x_start, remaining = _prepared(
-        _checked_inputs(runs, holdout, params, axis, candidates, side_source),
+        checked,
         side_source,
         seed,
         integration,
@@ -467,7 +468,6 @@ def diagnose(
     if again is None:
         return diag
     # A tentative command effect judged again at its own read-out (kept if adopted).
-    checked = _checked_inputs(runs, holdout, params, axis, candidates, side_source)
     data2 = _prepared(
         checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
     )[0]
