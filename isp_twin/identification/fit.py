@@ -73,6 +73,7 @@ from isp_twin.model.parameters import (
     EffectSpec,
     FittedWith,
     RateParams,
+    sample_hold_factor,
 )
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
 from isp_twin.units import DEG
@@ -914,8 +915,7 @@ def _hold_factor(pole: np.ndarray, integration: Integration) -> np.ndarray:
     """
     if not integration.exact_effect_hold:
         return np.ones_like(pole)
-    a = np.clip(pole, 1e-6, 1.0 - 1e-12)
-    return (1.0 - a) / -np.log(a)
+    return sample_hold_factor(pole)
 
 
 def _joint_torque_pass(

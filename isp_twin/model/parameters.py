@@ -48,6 +48,7 @@ __all__ = [
     "ParameterSet",
     "RateParams",
     "RATE_LAYOUT",
+    "sample_hold_factor",
     "load_parameters",
     "save_parameters",
 ]
@@ -267,6 +268,14 @@ class RateParams:
 #: The flat rate vector of `RateParams.to_vector`: per regime in Eq. 8 order
 #: (`REGIMES`), RateParams' fields in their declared order.
 RATE_LAYOUT = RateLayout(REGIMES, tuple(f.name for f in fields(RateParams)))
+
+
+def sample_hold_factor(pole) -> np.ndarray:
+    """What a constant acceleration held over one sample moves the rate by, over
+    ``accel*T``: ``(1 - a)/(-ln a)`` at the pole a = exp(-T/tau) (the zero-order
+    hold of a first-order axis; 1 as a -> 1, Eq. 6's ``accel*T``), same shape as `pole`."""
+    a = np.clip(np.asarray(pole, dtype=float), 1e-12, 1.0 - 1e-12)
+    return (1.0 - a) / -np.log(a)
 
 
 # ---------------------------------------------------------------- YAML I/O

@@ -8,6 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from isp_twin.model.effects.base import Effect
+from isp_twin.model.parameters import sample_hold_factor
 
 
 class TorqueOffset(Effect):
@@ -87,8 +88,8 @@ def implied_offset(
             ``accel*T*(1 - a)/(-ln a)`` (`Integration.exact_effect_hold`),
             else by ``accel*T`` (Eq. 6): the same factor converts b·Tc to Tc/J.
     """
-    a = np.clip(np.asarray(pole, float), 1e-12, 1.0 - 1e-12)
-    per_accel = (-np.log(a) / ((1.0 - a) * dt)) if exact_hold else np.full(4, 1.0 / dt)
+    hold = sample_hold_factor(pole) if exact_hold else np.ones(4)
+    per_accel = 1.0 / (hold * dt)
     acc = np.asarray(coulomb, float) * per_accel
     ci = np.asarray(coulomb_ci95, float) * per_accel
     sides = []
