@@ -9,7 +9,7 @@ import pytest
 
 from isp_twin.identification.fit import gyro_reading
 from isp_twin.model.axis_model import simulate
-from isp_twin.model.effects import make_effect
+from isp_twin.model.effects import Effect, make_effect
 from isp_twin.model.parameters import EffectSpec, RateParams
 from isp_twin.model.substep_model import EQ6, Integration, simulate_substeps
 from isp_twin.vocabulary import SIDE_L, SIDE_R
@@ -239,6 +239,23 @@ def test_simulate_substeps_is_the_same_on_one_thread_or_all(monkeypatch, paralle
         assert np.array_equal(getattr(before, f), getattr(after, f))
 
 
+class _RateDrag(Effect):
+    """A test-only torque of the rate: ``-per_s * rate`` [rad/s^2] (not registered)."""
+
+    name = "rate_drag"
+    param_names = ("per_s",)
+
+    @classmethod
+    def batched(cls, params):
+        effect = cls.__new__(cls)
+        effect.params = {"per_s": np.asarray(params["per_s"], dtype=float)}
+        effect.dt = DT
+        return effect
+
+    def acceleration(self, angle, rate):
+        return -self.params["per_s"] * np.asarray(rate)
+
+
 def _effect_specs(rng: np.random.Generator, n_sets: int) -> dict[str, dict[str, np.ndarray]]:
     """Batched parameters (P,) of every library effect, drawn inside its bounds."""
     from isp_twin.model.effects import EFFECTS
@@ -283,11 +300,13 @@ def _per_sample_loop(params, u, angle, effects, integration, omega0):
 @pytest.mark.parametrize(
     "names",
     [("cogging",), ("cable_spring", "unbalance", "torque_offset"), ("input_delay", "deadzone"),
-     ("saturation", "cogging"), ("lugre", "input_delay")],
+     ("saturation", "cogging"), ("rate_drag", "input_delay")],
 )  # fmt: skip
 def test_effects_evaluated_before_the_run_give_the_per_sample_numbers(names):
     # Command hooks and angle-only accelerations are evaluated over the whole
     # run before one kernel call; the numbers are those of the per-sample loop.
+    # A rate-dependent torque (`_RateDrag`; LuGre was one before its bristles
+    # moved into the kernel's sub-steps) stays per sample.
     from isp_twin.model.effects.batched import make_batched
 
     rng = np.random.default_rng(17)
@@ -298,8 +317,11 @@ def test_effects_evaluated_before_the_run_give_the_per_sample_numbers(names):
     angle_rows = np.tile(angle, (n_sets, 1))
     omega0 = rng.normal(0, 0.05, n_sets)
 
+    specs["rate_drag"] = {"per_s": rng.uniform(2.0, 20.0, n_sets)}
+
     def effects():
-        return [make_batched(n, specs[n], DT) for n in names]
+        return [_RateDrag.batched(specs[n]) if n == "rate_drag" else
+                make_batched(n, specs[n], DT) for n in names]  # fmt: skip
 
     kw = {"omega0": omega0, "angle0": angle_rows[:, 0], "angle_measured": angle_rows}
     got = simulate_substeps(params, u, DT, effects=effects(), **kw)

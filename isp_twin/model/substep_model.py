@@ -22,8 +22,14 @@ selects the half-plane and the rate at the sample's start, and their
 acceleration is held over its sub-steps like the command (their command and
 measure hooks act per sample too); with ``exact_effect_hold`` the
 acceleration gets the exact hold factor ``(1 - p)/(-ln a)`` per sub-step
-instead of c (`_substep_table`). The stick test of Eq. 5 is made at every
-sub-step. With ``midpoint_friction`` the sliding friction is taken at the mean
+instead of c (`_substep_table`). LuGre's bristles (`Effect.in_substeps`,
+m > 1) are friction, not a held acceleration: their force ``sigma0 z`` is
+held over each sub-step beside Eq. 5's (z at mid-travel with the midpoint
+friction), z follows ``dz/dtheta = 1 - sgn(w) z / z_max`` exactly over the
+sub-step's travel, it is held at rest, and a breakaway that passes the
+Karnopp test but whose rate the bristle force turns back stays stuck (the
+reference simulator's stick logic, `isp_twin.reference.axis`). The stick test
+of Eq. 5 is made at every sub-step. With ``midpoint_friction`` the sliding friction is taken at the mean
 of the sub-step's start rate and a predicted end rate (second order in the
 sub-step); with ``split_reversals`` a sub-step in which the rate reaches zero
 ends there and the rest of it is spent on the stick/breakaway decision
@@ -120,6 +126,34 @@ EQ6 = Integration(1, False, False, False)
 DEFAULT_INTEGRATION = Integration()
 
 
+#: Columns of the per-row coefficients of effects integrated in the sub-steps
+#: (`Effect.in_substeps`; ``sfx`` of `_advance_group`): LuGre's bristle drive
+#: ``accel_rad_s2 * T`` [rad/s per sample] and its pre-sliding distance [rad].
+STATE_COLUMNS: tuple[str, ...] = ("bristle_drive", "presliding_rad")
+
+
+@njit(cache=True, nogil=True)
+def _bristles(z, direction, travel, zmax):  # pragma: no cover - compiled
+    """LuGre's bristle deflection after ``travel`` [rad] in ``direction``:
+    ``dz/dtheta = 1 - sgn(w) z / z_max`` solved exactly (the reference's form)."""
+    z_ss = zmax if direction > 0.0 else -zmax
+    return z_ss + (z - z_ss) * np.exp(-abs(travel) / zmax)
+
+
+@njit(cache=True, nogil=True)
+def _break_through_bristles(w_new, d, part, hold, coef, z, b, h):  # pragma: no cover - compiled
+    """A breakaway from rest against the bristle force: the rate ``w_new``
+    reached over ``part`` of a sub-step past the Karnopp test, less ``sigma0 z``
+    held over it (``hold``: the sub-step's exact-hold factor); none if the
+    bristles hold the axis (the rate would not follow the drive ``d``, as in
+    the reference). Moves z over the travel (the rate rising linearly)."""
+    w_new -= part * hold * coef[0] * z[b] / coef[1]
+    if w_new * d <= 0.0:
+        return 0.0
+    z[b] = _bristles(z[b], w_new, 0.5 * h * part * w_new, coef[1])
+    return w_new
+
+
 @njit(cache=True, nogil=True)
 def _advance_group(
     table,
@@ -145,6 +179,8 @@ def _advance_group(
     frac,
     scratch,
     idx,
+    sfx,
+    kstate,
 ):  # pragma: no cover - compiled
     """Advance rows r_lo..r_hi-1 from sample k_lo-1 to k_hi-1 (writes columns k_lo..k_hi-1).
 
@@ -152,8 +188,11 @@ def _advance_group(
     effect factor) (`_substep_table`); u, extra: (S, N) per-sample command
     and extra drive [rate form per sample]; side_y: (S, N) angle choosing the
     half-plane (used when use_side); fixed_side: -1 none, else the side index; frac:
-    (m,) j/m; scratch: (7, >= rows) floats, idx: (>= rows,) ints (work space,
-    allocated once per call of `_advance_rows`: per-sample calls are many).
+    (m,) j/m; scratch: (8, >= rows) floats, idx: (>= rows,) ints (work space,
+    allocated once per call of `_advance_rows`: per-sample calls are many);
+    sfx: (S, 2) bristle drive [rate per sample] and pre-sliding distance
+    [rad] of LuGre integrated in the sub-steps, or (., 0): none; kstate:
+    (S, 1) the bristle deflection z [rad] (`STATE_COLUMNS`).
 
     The rows are the innermost loop: one sub-step of a row is a chain of
     dependent operations (two exp of the Stribeck curve), so the processor
@@ -170,9 +209,13 @@ def _advance_group(
     ek = scratch[4]
     y0 = scratch[5]
     dy = scratch[6]
+    z = scratch[7]  # bristle deflection [rad]
+    bristles = sfx.shape[1] >= 2
     for b in range(nb):
         w[b] = w_state[r_lo + b]
         y[b] = y_state[r_lo + b]
+        if bristles:
+            z[b] = kstate[r_lo + b, 0]
     fixed = fixed_side
     for k in range(k_lo, k_hi):
         for b in range(nb):
@@ -203,15 +246,24 @@ def _advance_group(
                     tc = table[i, ix, 3]
                     al = table[i, ix, 4]
                     slide = law.sliding(wb, ts, tc, al)
+                    if bristles:
+                        # LuGre's sigma0 z, held over the sub-step like friction.
+                        unit = table[i, ix, 5] * sfx[i, 0] / sfx[i, 1]
+                        slide += unit * z[b]
                     w_new = p * wb + drive - slide
                     if mid and w_new * wb > 0.0:
                         wm = 0.5 * (wb + w_new)
                         slide = law.sliding(wm, ts, tc, al)
+                        if bristles:  # z at mid-travel, as the friction at the mean rate
+                            slide += unit * _bristles(z[b], wb, 0.25 * h * (wb + w_new), sfx[i, 1])
                         w_new = p * wb + drive - slide
                     if w_new * wb <= 0.0:
                         rest_part = 0.0
                         if split and w_new != 0.0:
                             rest_part = 1.0 - wb / (wb - w_new)
+                        if bristles:  # travel to the stop: the rate falls linearly
+                            part = wb / (wb - w_new) if w_new != 0.0 else 1.0
+                            z[b] = _bristles(z[b], wb, 0.5 * h * part * wb, sfx[i, 1])
                         w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
@@ -221,6 +273,12 @@ def _advance_group(
                             ts2 = table[i, ix, 2]
                             if abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
+                                if bristles:
+                                    w_new = _break_through_bristles(
+                                        w_new, d, rest_part, table[i, ix, 5], sfx[i], z, b, h
+                                    )
+                    elif bristles:
+                        z[b] = _bristles(z[b], wb, 0.5 * h * (wb + w_new), sfx[i, 1])
                     wb = w_new
                 else:
                     # At rest the command's sign picks the gain and the total
@@ -231,6 +289,10 @@ def _advance_group(
                     ts = table[i, ix, 2]
                     if abs(d) > ts:
                         wb = d - law.stiction(d, ts)
+                        if bristles:
+                            wb = _break_through_bristles(
+                                wb, d, 1.0, table[i, ix, 5], sfx[i], z, b, h
+                            )
                     else:
                         wb = 0.0
                 w[b] = wb
@@ -249,6 +311,8 @@ def _advance_group(
     for b in range(nb):
         w_state[r_lo + b] = w[b]
         y_state[r_lo + b] = y[b]
+        if bristles:
+            kstate[r_lo + b, 0] = z[b]
 
 
 #: Rows advanced together (`_advance_group`): enough independent chains to
@@ -278,18 +342,25 @@ def _advance_rows(
     regime,
     r_lo,
     r_hi,
+    sfx=None,
+    kstate=None,
 ):  # pragma: no cover - compiled
-    """`_advance_group` on rows r_lo..r_hi-1, `GROUP_ROWS` at a time."""
+    """`_advance_group` on rows r_lo..r_hi-1, `GROUP_ROWS` at a time (no
+    effect in the sub-steps when sfx, kstate are omitted)."""
+    if sfx is None:
+        sfx_, kstate_ = np.zeros((1, 0)), np.zeros((1, 0))
+    else:
+        sfx_, kstate_ = sfx, kstate
     frac = np.empty(m)
     for j in range(m):
         frac[j] = j / m
-    scratch = np.empty((7, GROUP_ROWS))
+    scratch = np.empty((8, GROUP_ROWS))
     idx = np.zeros(GROUP_ROWS, dtype=np.int64)
     for g in range(r_lo, r_hi, GROUP_ROWS):
         g_hi = min(g + GROUP_ROWS, r_hi)
         _advance_group(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid,
                        split, w_state, y_state, point, reading, angle, regime, g, g_hi, frac,
-                       scratch, idx)  # fmt: skip
+                       scratch, idx, sfx_, kstate_)  # fmt: skip
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -313,13 +384,16 @@ def _advance_blocks(
     angle,
     regime,
     n_blocks,
+    sfx=None,
+    kstate=None,
 ):  # pragma: no cover - compiled
     """`_advance_rows` on `n_blocks` blocks of rows in parallel (rows are independent)."""
     n_rows = u.shape[0]
     for c in prange(n_blocks):
         r_lo, r_hi = c * n_rows // n_blocks, (c + 1) * n_rows // n_blocks
         _advance_rows(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
-                      w_state, y_state, point, reading, angle, regime, r_lo, r_hi)  # fmt: skip
+                      w_state, y_state, point, reading, angle, regime, r_lo, r_hi, sfx,
+                      kstate)  # fmt: skip
 
 
 #: Sub-steps (rows x samples x m) below which a call stays on one thread:
@@ -329,7 +403,7 @@ PARALLEL_MIN_SUBSTEPS = 200_000
 
 
 def _advance(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
-             w_state, y_state, point, reading, angle, regime):  # fmt: skip
+             w_state, y_state, point, reading, angle, regime, sfx, kstate):  # fmt: skip
     """Advance every row from sample k_lo-1 to k_hi-1 (`_advance_rows`), on all
     of numba's threads when the call is large enough; the same numbers either way."""
     n_rows = u.shape[0]
@@ -337,9 +411,9 @@ def _advance(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, m
     args = (table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
             w_state, y_state, point, reading, angle, regime)  # fmt: skip
     if blocks > 1 and n_rows * (k_hi - k_lo) * m >= PARALLEL_MIN_SUBSTEPS:
-        _advance_blocks(*args, blocks)
+        _advance_blocks(*args, blocks, sfx, kstate)
     else:
-        _advance_rows(*args, 0, n_rows)
+        _advance_rows(*args, 0, n_rows, sfx, kstate)
 
 
 @njit(cache=True)
@@ -462,15 +536,14 @@ def simulate_substeps(
     fixed = -1 if check_side(side) is None else side
     outputs = _state_and_outputs(n_rows, n, omega0, angle0)
     _, _, point, reading, angle, regime = outputs
-    for e in effects:
-        e.reset()
+    sfx, kstate, effects = _substep_effects(effects, n_rows, dt, m)
     args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
     use_side = angle_measured is not None
     commands, torques, u_eff, extra = _effects_before_the_run(effects, u_rows, side_y, use_side, dt)
     if not (commands or torques):
-        _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, *outputs)
+        _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, *outputs, sfx, kstate)
     else:
-        kernel_args = (table, side_y, use_side, fixed, args, outputs)
+        kernel_args = (table, side_y, use_side, fixed, args, outputs, sfx, kstate)
         _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt)
     out = _measured(reading if gyro_average else point, effects)
     true = None if out is point else point
@@ -497,7 +570,7 @@ def _state_and_outputs(n_rows: int, n: int, omega0, angle0) -> tuple[np.ndarray,
 def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt) -> None:
     """Effects that need the model's own state: evaluated per sample, their
     command and acceleration held over the sub-steps of one kernel call each."""
-    table, side_y, use_side, fixed, args, outputs = kernel_args
+    table, side_y, use_side, fixed, args, outputs, sfx, kstate = kernel_args
     w, y = outputs[0], outputs[1]
     n_rows, n = u_rows.shape
     if commands:
@@ -512,7 +585,35 @@ def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt) ->
             at = side_y[:, k - 1] if use_side else y
             extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
         _advance_rows(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args,
-                      *outputs, 0, n_rows)  # fmt: skip
+                      *outputs, 0, n_rows, sfx, kstate)  # fmt: skip
+
+
+def _substep_effects(effects, n_rows: int, dt: float, m: int):
+    """Reset the effects; the kernel's coefficients (rows, `STATE_COLUMNS`) and
+    initial state (rows, 1) of those integrated in the sub-steps
+    (`Effect.in_substeps`), or (1, 0) arrays when there is none, and the
+    effects left to their hooks.
+    At m = 1 there is none: Eq. 6 holds every effect per sample, as
+    `isp_twin.model.axis_model.simulate` does.
+
+    Raises:
+        ParameterError: two effects that both hold the bristle state.
+    """
+    for e in effects:
+        e.reset()
+    inside = [e for e in effects if e.in_substeps] if m > 1 else []
+    if not inside:
+        return np.zeros((1, 0)), np.zeros((1, 0)), list(effects)
+    hooks = [e for e in effects if not e.in_substeps]
+    if len(inside) > 1:
+        names = ", ".join(e.name for e in inside)
+        raise ParameterError(f"effects {names}: only one effect can hold the bristle state")
+    columns = inside[0].substep_columns(dt)
+    sfx = np.empty((n_rows, len(STATE_COLUMNS)))
+    for c, name in enumerate(STATE_COLUMNS):
+        sfx[:, c] = np.broadcast_to(np.asarray(columns[name], dtype=float), (n_rows,))
+    # The bristles start relaxed, as the reference's (`isp_twin.reference.axis`).
+    return sfx, np.zeros((n_rows, 1)), hooks
 
 
 def _input_rows(u, angle_measured, n_rows: int, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -23,6 +23,11 @@ class Effect:
     #: state): the sub-stepped model then evaluates it before the run
     #: instead of once per sample (`isp_twin.model.substep_model`).
     acceleration_uses_rate: ClassVar[bool] = True
+    #: True where the sub-stepped model (m > 1) integrates the effect's state
+    #: inside its sub-steps, with the friction and the stick test, from
+    #: `substep_columns` (LuGre's bristles); it then calls none of the hooks
+    #: below (the twin, Eq. 6 and m = 1, `isp_twin.model.axis_model`, still do).
+    in_substeps: ClassVar[bool] = False
 
     def __init__(self, params: Mapping[str, float], dt: float = 1e-3):
         self.check_params(params)
@@ -49,6 +54,12 @@ class Effect:
 
     def reset(self) -> None:
         """Clear internal state (delay lines, filter states)."""
+
+    def substep_columns(self, dt: float) -> dict[str, object]:
+        """The kernel's coefficients of an `in_substeps` effect, by the names of
+        `isp_twin.model.substep_model.STATE_COLUMNS` (floats or arrays (P,));
+        none for an effect that acts through its hooks."""
+        return {}
 
     def command(self, u: float) -> float:
         return u

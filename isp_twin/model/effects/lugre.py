@@ -15,6 +15,11 @@ hold the old direction's force for all of it. Measured on reference axes
 (dev seeds 1000-1005 of issue 8, true rate form and true LuGre): held-out RMS
 error 1.01-3.56 noise floors with the mean, 1.02-7.55 with the start value
 (docs/diagnosis.md, "Resonance and LuGre on reference axes").
+
+That per-sample form serves Eq. 6 and the twin. The sub-stepped model
+(m > 1) integrates z inside its sub-steps with the friction and the stick
+test instead (`in_substeps`, `substep_columns`): on the same axes 0.98-1.03
+noise floors (docs/diagnosis.md, "Stop 17 B").
 """
 
 from __future__ import annotations
@@ -48,6 +53,19 @@ class LuGre(Effect):
         "accel_rad_s2": (0.0, 500.0),
         "presliding_rad": (1e-5, 0.05),
     }
+
+    #: The sub-stepped model integrates z with the friction, sub-step by
+    #: sub-step (`isp_twin.model.substep_model`); `acceleration` serves Eq. 6
+    #: and the twin.
+    in_substeps = True
+
+    def substep_columns(self, dt: float) -> dict[str, object]:
+        """The bristle drive at full deflection ``accel_rad_s2 * dt`` [rad/s per
+        sample] and the pre-sliding distance [rad]."""
+        return {
+            "bristle_drive": np.asarray(self.params["accel_rad_s2"]) * dt,
+            "presliding_rad": self.params["presliding_rad"],
+        }
 
     def reset(self) -> None:
         self._z = np.zeros(np.shape(self.params["presliding_rad"]))
