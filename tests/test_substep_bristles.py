@@ -46,9 +46,11 @@ def _kernel(params: RateParams, u, w0, z0, drive, zmax, n):
     extra = np.zeros((rows, n))
     w, y = np.asarray(w0, float).copy(), np.full(rows, 0.1)
     out = [np.zeros((rows, n)) for _ in range(3)] + [np.zeros((rows, n), dtype=np.int64)]
-    sfx = np.empty((rows, len(STATE_COLUMNS)))
+    assert STATE_COLUMNS[:2] == ("bristle_drive", "presliding_rad")
+    sfx = np.empty((rows, 2))  # the bristles' columns alone: no payload
     sfx[:, 0], sfx[:, 1] = drive, zmax
-    kstate = np.asarray(z0, float).reshape(rows, 1).copy()
+    kstate = np.zeros((rows, 3))
+    kstate[:, 0] = z0
     z = np.empty((rows, n))
     z[:, 0] = kstate[:, 0]
     for k in range(1, n):

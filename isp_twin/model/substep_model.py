@@ -128,8 +128,45 @@ DEFAULT_INTEGRATION = Integration()
 
 #: Columns of the per-row coefficients of effects integrated in the sub-steps
 #: (`Effect.in_substeps`; ``sfx`` of `_advance_group`): LuGre's bristle drive
-#: ``accel_rad_s2 * T`` [rad/s per sample] and its pre-sliding distance [rad].
-STATE_COLUMNS: tuple[str, ...] = ("bristle_drive", "presliding_rad")
+#: ``accel_rad_s2 * T`` [rad/s per sample] and its pre-sliding distance [rad];
+#: a two-mass payload's J2/J1 [1], the spring's acceleration on the motor
+#: side per payload coordinate y [1/s^2] and per y' [1/s], and the mode's
+#: transition over a sub-step, free (Phi, Gamma) and with the motor side
+#: clamped (Phi) (`isp_twin.model.two_mass_payload.TwoMassResonance`).
+STATE_COLUMNS: tuple[str, ...] = (
+    "bristle_drive",
+    "presliding_rad",
+    "payload_ratio",
+    "spring_y",
+    "spring_yd",
+    *(f"free_{c}" for c in ("00", "01", "10", "11", "g0", "g1")),
+    *(f"clamped_{c}" for c in ("00", "01", "10", "11")),
+)
+#: Defaults of the columns no effect gives (no bristle force).
+_COLUMN_DEFAULTS = {"bristle_drive": 0.0, "presliding_rad": 1.0}
+
+
+@njit(cache=True, nogil=True)
+def _payload_motion(coef, yp, ydp, w1, w_rigid, h):  # pragma: no cover - compiled
+    """A sub-step of the motor side (rate ``w1``) with the payload's mode.
+
+    ``w_rigid`` is the motor rate the sub-step would reach on a rigid axis
+    (friction and viscous torque at ``w1``); ``w_rigid - w1`` is then the
+    centre-of-mass rate's increment (the spring is internal), which drives
+    the mode ``y'' + 2 zeta wn y' + wn^2 y = -w'`` held over the sub-step.
+    Returns the motor rate ``w_rigid - r (y'_new - y')`` and (y, y') new.
+    """
+    a = (w_rigid - w1) / h
+    y_new = coef[5] * yp + coef[6] * ydp + coef[9] * a
+    yd_new = coef[7] * yp + coef[8] * ydp + coef[10] * a
+    return w_rigid - coef[2] * (yd_new - ydp), y_new, yd_new
+
+
+@njit(cache=True, nogil=True)
+def _payload_clamped(coef, yp, ydp):  # pragma: no cover - compiled
+    """The payload ringing over a sub-step with the motor side stuck:
+    ``(1 + r) y'' + 2 zeta wn y' + wn^2 y = 0`` (the clamped frequency)."""
+    return coef[11] * yp + coef[12] * ydp, coef[13] * yp + coef[14] * ydp
 
 
 @njit(cache=True, nogil=True)
@@ -191,8 +228,11 @@ def _advance_group(
     (m,) j/m; scratch: (8, >= rows) floats, idx: (>= rows,) ints (work space,
     allocated once per call of `_advance_rows`: per-sample calls are many);
     sfx: (S, 2) bristle drive [rate per sample] and pre-sliding distance
-    [rad] of LuGre integrated in the sub-steps, or (., 0): none; kstate:
-    (S, 1) the bristle deflection z [rad] (`STATE_COLUMNS`).
+    [rad] of LuGre integrated in the sub-steps, (S, 15) with a two-mass
+    payload (`STATE_COLUMNS`), or (., 0): none; kstate: (S, 3) the bristle
+    deflection z [rad] and the payload's y [rad], y' [rad/s]. With a payload
+    w is the motor side's rate (friction, stick, resolver) and the gyro
+    reads the payload's ``w + (1 + r) y'``.
 
     The rows are the innermost loop: one sub-step of a row is a chain of
     dependent operations (two exp of the Stribeck curve), so the processor
@@ -210,19 +250,25 @@ def _advance_group(
     y0 = scratch[5]
     dy = scratch[6]
     z = scratch[7]  # bristle deflection [rad]
+    yp = scratch[8]  # payload coordinate and its rate
+    ydp = scratch[9]
     bristles = sfx.shape[1] >= 2
+    payload = sfx.shape[1] >= 15
     for b in range(nb):
         w[b] = w_state[r_lo + b]
         y[b] = y_state[r_lo + b]
         if bristles:
             z[b] = kstate[r_lo + b, 0]
+        if payload:
+            yp[b] = kstate[r_lo + b, 1]
+            ydp[b] = kstate[r_lo + b, 2]
     fixed = fixed_side
     for k in range(k_lo, k_hi):
         for b in range(nb):
             i = r_lo + b
             uk[b] = u[i, k - 1]
             ek[b] = extra[i, k - 1]
-            acc[b] = 0.5 * w[b]
+            acc[b] = 0.5 * (w[b] + (1.0 + sfx[i, 2]) * ydp[b] if payload else w[b])
             idx[b] = 0
             if use_side:
                 y0[b] = side_y[i, k - 1]
@@ -251,15 +297,19 @@ def _advance_group(
                         unit = table[i, ix, 5] * sfx[i, 0] / sfx[i, 1]
                         slide += unit * z[b]
                     w_new = p * wb + drive - slide
+                    if payload:
+                        w_new, yn, ydn = _payload_motion(sfx[i], yp[b], ydp[b], wb, w_new, h)
                     if mid and w_new * wb > 0.0:
                         wm = 0.5 * (wb + w_new)
                         slide = law.sliding(wm, ts, tc, al)
                         if bristles:  # z at mid-travel, as the friction at the mean rate
                             slide += unit * _bristles(z[b], wb, 0.25 * h * (wb + w_new), sfx[i, 1])
                         w_new = p * wb + drive - slide
+                        if payload:
+                            w_new, yn, ydn = _payload_motion(sfx[i], yp[b], ydp[b], wb, w_new, h)
                     if w_new * wb <= 0.0:
                         rest_part = 0.0
-                        if split and w_new != 0.0:
+                        if split and w_new != 0.0 and not payload:
                             rest_part = 1.0 - wb / (wb - w_new)
                         if bristles:  # travel to the stop: the rate falls linearly
                             part = wb / (wb - w_new) if w_new != 0.0 else 1.0
@@ -279,32 +329,48 @@ def _advance_group(
                                     )
                     elif bristles:
                         z[b] = _bristles(z[b], wb, 0.5 * h * (wb + w_new), sfx[i, 1])
+                    if payload:
+                        yp[b], ydp[b] = yn, ydn
                     wb = w_new
                 else:
                     # At rest the command's sign picks the gain and the total
                     # drive's sign the breakaway level (as `axis_model.simulate`).
                     r0 = law.regime_of(side, uk[b])
                     d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
-                    ix = law.regime_of(side, d)
+                    dd = d  # the motor side's drive: the payload's spring pulls on it
+                    if payload:
+                        spring = sfx[i, 3] * yp[b] + sfx[i, 4] * ydp[b]
+                        dd = d + table[i, r0, 5] * dt * spring
+                    ix = law.regime_of(side, dd)
                     ts = table[i, ix, 2]
-                    if abs(d) > ts:
-                        wb = d - law.stiction(d, ts)
+                    if abs(dd) > ts:
+                        wb = d - law.stiction(dd, ts)
                         if bristles:
                             wb = _break_through_bristles(
-                                wb, d, 1.0, table[i, ix, 5], sfx[i], z, b, h
+                                wb, dd, 1.0, table[i, ix, 5], sfx[i], z, b, h
                             )
+                        if payload:
+                            wb, yn, ydn = _payload_motion(sfx[i], yp[b], ydp[b], 0.0, wb, h)
+                            if wb * dd <= 0.0:
+                                wb = 0.0
+                                yn, ydn = _payload_clamped(sfx[i], yp[b], ydp[b])
+                            yp[b], ydp[b] = yn, ydn
                     else:
                         wb = 0.0
+                        if payload:
+                            yp[b], ydp[b] = _payload_clamped(sfx[i], yp[b], ydp[b])
                 w[b] = wb
                 idx[b] = ix
                 y[b] = y[b] + h * wb
+                if payload:
+                    wb = wb + (1.0 + sfx[i, 2]) * ydp[b]  # the gyro on the payload
                 if j < m - 1:
                     acc[b] += wb
                 else:
                     acc[b] += 0.5 * wb
         for b in range(nb):
             i = r_lo + b
-            point[i, k] = w[b]
+            point[i, k] = w[b] + (1.0 + sfx[i, 2]) * ydp[b] if payload else w[b]
             reading[i, k] = acc[b] / m
             angle[i, k] = y[b]
             regime[i, k] = idx[b]
@@ -313,6 +379,9 @@ def _advance_group(
         y_state[r_lo + b] = y[b]
         if bristles:
             kstate[r_lo + b, 0] = z[b]
+        if payload:
+            kstate[r_lo + b, 1] = yp[b]
+            kstate[r_lo + b, 2] = ydp[b]
 
 
 #: Rows advanced together (`_advance_group`): enough independent chains to
@@ -354,7 +423,7 @@ def _advance_rows(
     frac = np.empty(m)
     for j in range(m):
         frac[j] = j / m
-    scratch = np.empty((8, GROUP_ROWS))
+    scratch = np.zeros((10, GROUP_ROWS))
     idx = np.zeros(GROUP_ROWS, dtype=np.int64)
     for g in range(r_lo, r_hi, GROUP_ROWS):
         g_hi = min(g + GROUP_ROWS, r_hi)
@@ -589,31 +658,34 @@ def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt) ->
 
 
 def _substep_effects(effects, n_rows: int, dt: float, m: int):
-    """Reset the effects; the kernel's coefficients (rows, `STATE_COLUMNS`) and
-    initial state (rows, 1) of those integrated in the sub-steps
-    (`Effect.in_substeps`), or (1, 0) arrays when there is none, and the
-    effects left to their hooks.
-    At m = 1 there is none: Eq. 6 holds every effect per sample, as
-    `isp_twin.model.axis_model.simulate` does.
+    """Reset the effects; the kernel's coefficients (rows, 2 or 15 of
+    `STATE_COLUMNS`) and initial state (rows, 3) of those integrated in the
+    sub-steps (`Effect.in_substeps`), or (1, 0) arrays when there is none,
+    and the effects left to their hooks. At m = 1 there is none: Eq. 6 holds
+    every effect per sample, as `isp_twin.model.axis_model.simulate` does.
 
     Raises:
-        ParameterError: two effects that both hold the bristle state.
+        ParameterError: two effects that give the same kernel state.
     """
     for e in effects:
         e.reset()
     inside = [e for e in effects if e.in_substeps] if m > 1 else []
     if not inside:
         return np.zeros((1, 0)), np.zeros((1, 0)), list(effects)
-    hooks = [e for e in effects if not e.in_substeps]
-    if len(inside) > 1:
-        names = ", ".join(e.name for e in inside)
-        raise ParameterError(f"effects {names}: only one effect can hold the bristle state")
-    columns = inside[0].substep_columns(dt)
-    sfx = np.empty((n_rows, len(STATE_COLUMNS)))
-    for c, name in enumerate(STATE_COLUMNS):
+    columns = dict(_COLUMN_DEFAULTS)
+    given: set[str] = set()
+    for e in inside:
+        cols = e.substep_columns(dt, m)
+        if given & set(cols):
+            raise ParameterError(f"effect {e.name}: another effect holds the same kernel state")
+        given |= set(cols)
+        columns.update(cols)
+    names = STATE_COLUMNS if "payload_ratio" in given else STATE_COLUMNS[:2]
+    sfx = np.empty((n_rows, len(names)))
+    for c, name in enumerate(names):
         sfx[:, c] = np.broadcast_to(np.asarray(columns[name], dtype=float), (n_rows,))
-    # The bristles start relaxed, as the reference's (`isp_twin.reference.axis`).
-    return sfx, np.zeros((n_rows, 1)), hooks
+    # Bristles relaxed, payload at rest on the motor side (as the reference).
+    return sfx, np.zeros((n_rows, 3)), [e for e in effects if not e.in_substeps]
 
 
 def _input_rows(u, angle_measured, n_rows: int, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -55,7 +55,7 @@ class Effect:
     def reset(self) -> None:
         """Clear internal state (delay lines, filter states)."""
 
-    def substep_columns(self, dt: float) -> dict[str, object]:
+    def substep_columns(self, dt: float, m: int) -> dict[str, object]:
         """The kernel's coefficients of an `in_substeps` effect, by the names of
         `isp_twin.model.substep_model.STATE_COLUMNS` (floats or arrays (P,));
         none for an effect that acts through its hooks."""

@@ -59,7 +59,7 @@ class LuGre(Effect):
     #: and the twin.
     in_substeps = True
 
-    def substep_columns(self, dt: float) -> dict[str, object]:
+    def substep_columns(self, dt: float, m: int) -> dict[str, object]:
         """The bristle drive at full deflection ``accel_rad_s2 * dt`` [rad/s per
         sample] and the pre-sliding distance [rad]."""
         return {

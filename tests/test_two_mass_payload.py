@@ -1,0 +1,109 @@
+"""The two-mass payload integrated in the sub-stepped model's sub-steps
+(`isp_twin.model.two_mass_payload`, `isp_twin.model.substep_model`): the free
+mode on a frictionless axis, the clamped mode on a stuck motor side, and
+reference axes with the true payload held."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from isp_twin.identification.fit import Timing, rmse
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.effects import EFFECTS
+from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
+from isp_twin.model.substep_model import STATE_COLUMNS, _advance_rows, _substep_table
+from isp_twin.model.two_mass_payload import TwoMassResonance
+from isp_twin.reference import design_experiment
+from isp_twin.units import DEG
+
+DT = 1e-3
+M = 10
+
+
+def _axis(pole, static) -> RateParams:
+    ones = np.ones(4)
+    return RateParams(pole * ones, 0 * ones, static * ones, 0.5 * static * ones, 0 * ones)
+
+
+def _ring(params: RateParams, mode: dict, y0: float, n: int):
+    """The kernel from rest with the payload deflected by y0: motor rate and y per sample."""
+    effect = TwoMassResonance(mode, DT)
+    cols = effect.substep_columns(DT, M)
+    sfx = np.array([[0.0, 1.0, *(float(cols[c]) for c in STATE_COLUMNS[2:])]])
+    kstate = np.array([[0.0, y0, 0.0]])
+    table = _substep_table(params, 1, M)
+    zeros = np.zeros((1, n))
+    w, ang = np.zeros(1), np.full(1, 0.1)
+    out = [np.zeros((1, n)) for _ in range(3)] + [np.zeros((1, n), dtype=np.int64)]
+    y, yd = np.empty(n), np.zeros(n)
+    y[0] = y0
+    for k in range(1, n):
+        _advance_rows(table, zeros, zeros, np.zeros((1, 1)), False, -1, k, k + 1, M, DT, True,
+                      True, w, ang, *out, 0, 1, sfx, kstate)  # fmt: skip
+        y[k], yd[k] = kstate[0, 1], kstate[0, 2]
+    gyro = out[0][0]  # the payload's rate w1 + (1 + r) y'
+    return gyro - (1.0 + cols["payload_ratio"]) * yd, y
+
+
+def _frequency_hz(y: np.ndarray) -> float:
+    """From the mean spacing of the zero crossings (upward)."""
+    up = np.flatnonzero((y[:-1] < 0) & (y[1:] >= 0))
+    frac = y[up] / (y[up] - y[up + 1])
+    t = (up + frac) * DT
+    return 1.0 / float(np.mean(np.diff(t)))
+
+
+def test_a_frictionless_two_mass_axis_rings_at_the_free_frequency():
+    # No friction, no viscous torque (a = 1): the mode is the free two-mass
+    # mode sqrt(k/mu); with J2 = 0.4 J the clamped one is 22 % lower.
+    mode = {"freq_hz": 40.0, "damping_ratio": 0.005, "payload_fraction": 0.4}
+    _, y = _ring(_axis(1.0, 0.0), mode, 1e-3, 400)
+    assert _frequency_hz(y) == pytest.approx(40.0 * math.sqrt(1 - 0.005**2), rel=0.01)
+
+
+def test_a_stuck_motor_side_lets_the_payload_ring_at_the_clamped_frequency():
+    # Breakaway far above the spring's pull: the motor side never moves, and
+    # (1 + r) y'' + 2 zeta wn y' + wn^2 y = 0 is stepped exactly.
+    f, zeta, fraction = 40.0, 0.02, 0.4
+    r = fraction / (1 - fraction)
+    mode = {"freq_hz": f, "damping_ratio": zeta, "payload_fraction": fraction}
+    motor, y = _ring(_axis(math.exp(-DT / 0.05), 10.0), mode, 1e-3, 300)
+    assert np.all(motor == 0.0)
+    wc, zc = 2 * math.pi * f / math.sqrt(1 + r), zeta / math.sqrt(1 + r)
+    wd = wc * math.sqrt(1 - zc**2)
+    t = np.arange(300) * DT
+    want = 1e-3 * np.exp(-zc * wc * t) * (np.cos(wd * t) + zc * wc / wd * np.sin(wd * t))
+    assert np.allclose(y, want, rtol=0, atol=1e-9 * 1e-3)
+
+
+@pytest.mark.parametrize("seed", [1000, 1002])
+def test_the_true_two_mass_payload_of_reference_axes_is_within_the_issues_bound(monkeypatch, seed):
+    # Dev seeds of issue 8 (1000: 36 Hz, 1002); with `resonance`'s form the
+    # truth left 2.7 / 10.8 and 1.06 / 4.19 noise floors (train1 / held-out).
+    # The two-mass form holds the reference's physics up to its stop and
+    # breakaway handling (no split of a sub-step at a stop with the payload),
+    # so the bound is the issue's 1.5 noise floors for an effect, not 1.
+    monkeypatch.setitem(EFFECTS, TwoMassResonance.name, TwoMassResonance)
+    exp = design_experiment(seed, "resonance")
+    truth = exp.truth()
+    sigma = truth["noise_sigma_deg_s"] * DEG
+    regimes = truth["rate_form"]["regimes"]
+    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
+    p = truth["effects"][0]["params"]
+    fraction = truth["effects"][0]["physical"]["payload_fraction"]
+    spec = EffectSpec(
+        TwoMassResonance.name,
+        {
+            "freq_hz": p["freq_hz"],
+            "damping_ratio": p["damping_ratio"],
+            "payload_fraction": fraction,
+        },
+    )
+    for name in ("train1", "heldout"):
+        r = exp.runs[name]
+        data = [MeasuredData(name, r.t, r.u, r.omega, r.theta, None, DT)]
+        error = rmse(RateParams.from_vector(x), data, effects=(spec,), timing=Timing(0.0, True))
+        assert error / sigma < 1.5, name
