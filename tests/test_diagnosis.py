@@ -8,11 +8,11 @@ import pytest
 from isp_twin.diagnosis.candidates import BASELINE, fit_candidates
 from isp_twin.diagnosis.residual import analyse, noise_floor
 from isp_twin.diagnosis.selection import judge
-from isp_twin.diagnosis.simulation import predict, stack_runs
 from isp_twin.diagnosis.synthetic import excitation, make_run
 from isp_twin.errors import DataError
 from isp_twin.estimation.intervals import confidence_intervals
 from isp_twin.estimation.least_squares import levenberg_marquardt
+from isp_twin.estimation.simulation_error import predict, stack_runs
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.parameters import EffectSpec, load_parameters
 from isp_twin.model.substep_model import EQ6

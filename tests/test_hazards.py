@@ -198,7 +198,7 @@ def _drifting(path: Path, ppm: float) -> Path:
 
 
 def test_a_clock_drifting_30_ppm_passes_identify_and_diagnose_alike(tmp_path):
-    from isp_twin.diagnosis.simulation import stack_runs
+    from isp_twin.estimation.simulation_error import stack_runs
     from isp_twin.identification.measured import (
         SAMPLE_PERIOD_TOLERANCE,
         check_sample_period,

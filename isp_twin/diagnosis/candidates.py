@@ -18,10 +18,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from isp_twin.diagnosis.residual import ResidualContext, residual_context
-from isp_twin.diagnosis.simulation import RunStack, predict, predict_one, residuals_many
 from isp_twin.estimation.information import bic
 from isp_twin.estimation.intervals import confidence_intervals
 from isp_twin.estimation.least_squares import FitResult, FitStatus, lm_steps, solve_many
+from isp_twin.estimation.simulation_error import RunStack, predict, predict_one, residuals_many
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec
 from isp_twin.model.rate_layout import CandidateLayout

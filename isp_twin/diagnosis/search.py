@@ -74,12 +74,12 @@ from isp_twin.diagnosis.candidates import (
 )
 from isp_twin.diagnosis.residual import ResidualAnalysis, analyse, noise_floor, residual_context
 from isp_twin.diagnosis.selection import MIN_GAIN, Verdict, judge, select
-from isp_twin.diagnosis.simulation import RunStack, predict_one, residuals_many
-from isp_twin.diagnosis.simulation import residuals as _simulation_residuals
-from isp_twin.diagnosis.simulation import stack_runs as _stack_runs
 from isp_twin.errors import DataError, ParameterError, nearest
 from isp_twin.estimation.information import bic, parameter_penalty
 from isp_twin.estimation.parameter_file import fitted_axis
+from isp_twin.estimation.simulation_error import RunStack, predict_one, residuals_many
+from isp_twin.estimation.simulation_error import residuals as _simulation_residuals
+from isp_twin.estimation.simulation_error import stack_runs as _stack_runs
 from isp_twin.estimation.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.identification.fit import (
     JOINT_FORMS,

@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -62,6 +62,8 @@ import numpy as np
 from isp_twin.errors import DataError, ParameterError
 from isp_twin.estimation.intervals import confidence_intervals
 from isp_twin.estimation.parameter_file import fitted_axis, stored_form
+from isp_twin.estimation.simulation_error import RunStack, predict_one, stack_runs
+from isp_twin.estimation.simulation_error import residuals as simulation_residuals
 from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.effects import Effect, effect_class, make_effect
@@ -75,7 +77,7 @@ from isp_twin.model.parameters import (
     RateParams,
     sample_hold_factor,
 )
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.units import DEG
 
 __all__ = [
@@ -382,8 +384,26 @@ def regime_visits(
     return counts
 
 
-def _omega0(d: MeasuredData, rest: float) -> float:
-    return 0.0 if abs(d.omega[0]) <= rest else float(d.omega[0])
+def run_stack(
+    data: Sequence[MeasuredData],
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+) -> RunStack:
+    """The runs as Eq. 9 sees them, stacked for the shared simulation error
+    (`isp_twin.estimation.simulation_error`): the half-plane from the
+    `side_source` angle read at `timing`, every sample after the first
+    counted, a first rate within `rest_rate_deg_s` [deg/s] taken as rest."""
+    shift = timing.side_shift / integration.substeps
+    runs = [replace(d, angle=side_angle(d, side_source, shift)) for d in data]
+    return stack_runs(
+        runs,
+        warmup=1,
+        gyro_average=timing.gyro_average,
+        integration=integration,
+        rest=rest_rate_deg_s * DEG,
+    )
 
 
 def simulate_data(
@@ -398,21 +418,17 @@ def simulate_data(
     """The model (Eq. 6 in `integration`'s sub-steps) driven by the run's
     command and measured angle; `AxisResponse`.
 
-    `effects` (a parameter file's ``effects:``) are held fixed; they are built
-    afresh for every simulation because they carry state. With
+    `effects` (a parameter file's ``effects:``) are held fixed. With
     ``timing.gyro_average`` the returned rate is what a gyro averaging over
     each sample period reads (`Timing`).
     """
-    return simulate_substeps(
-        rate,
-        d.u,
-        d.dt,
-        omega0=_omega0(d, rest_rate_deg_s * DEG),
-        angle0=float(d.angle[0]),
-        angle_measured=side_angle(d, side_source, timing.side_shift / integration.substeps),
-        effects=[make_effect(e, d.dt) for e in effects],
-        integration=integration,
-        gyro_average=timing.gyro_average,
+    stack = run_stack([d], side_source, rest_rate_deg_s, timing, integration)
+    resp = predict_one(stack, rate.to_vector(), tuple(effects))
+    return type(resp)(
+        *(
+            None if a is None else a[0]
+            for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
+        )
     )
 
 
@@ -431,7 +447,7 @@ def gyro_reading(omega: np.ndarray, average: bool) -> np.ndarray:
 
 def residuals(
     rate: RateParams,
-    data: Sequence[MeasuredData],
+    data: Sequence[MeasuredData] | RunStack,
     side_source: str = "measured",
     rest_rate_deg_s: float = 0.1,
     effects: Sequence[EffectSpec] = (),
@@ -440,38 +456,18 @@ def residuals(
 ) -> np.ndarray:
     """Simulated minus measured rate [rad/s], sample 0 of each set left out.
 
-    Shape (P, M) for batched params (M = total samples), else (M,). All runs
-    are simulated side by side as rows of one batch (shorter runs padded
-    with a zero command after their end, which cannot reach back), so the
-    time loop is as long as the longest run, not the sum.
+    Shape (P, M) for batched params (M = total samples), else (M,). The
+    shared simulation error (`isp_twin.estimation.simulation_error.residuals`)
+    on `run_stack`'s stack; ``data`` may be that stack already (then the
+    side source, rest level, timing and integration are the stack's).
     """
     single = np.ndim(rate.pole) == 1
-    vec = np.atleast_2d(rate.to_vector())
-    n_sets, n_runs = vec.shape[0], len(data)
-    n = max(len(d) for d in data)
-    u = np.zeros((n_runs, n))
-    y = np.zeros((n_runs, n))
-    for i, d in enumerate(data):
-        u[i, : len(d)] = d.u
-        y[i, : len(d)] = side_angle(d, side_source, timing.side_shift / integration.substeps)
-        y[i, len(d) :] = y[i, len(d) - 1]
-    rest = rest_rate_deg_s * DEG
-    w0 = np.array([_omega0(d, rest) for d in data])
-    a0 = np.array([float(d.angle[0]) for d in data])
-    resp = simulate_substeps(
-        RateParams.from_vector(np.repeat(vec, n_runs, axis=0)),
-        np.tile(u, (n_sets, 1)),
-        data[0].dt,
-        omega0=np.tile(w0, n_sets),
-        angle0=np.tile(a0, n_sets),
-        angle_measured=np.tile(y, (n_sets, 1)),
-        effects=[make_effect(e, data[0].dt) for e in effects],
-        integration=integration,
-        gyro_average=timing.gyro_average,
+    stack = (
+        data
+        if isinstance(data, RunStack)
+        else run_stack(data, side_source, rest_rate_deg_s, timing, integration)
     )
-    omega = resp.omega.reshape(n_sets, n_runs, n)
-    parts = [omega[:, i, 1 : len(d)] - d.omega[1:] for i, d in enumerate(data)]
-    out = np.concatenate(parts, axis=-1)
+    out = -simulation_residuals(stack, np.atleast_2d(rate.to_vector()), fixed=tuple(effects))
     return out[0] if single else out
 
 
@@ -1360,6 +1356,7 @@ class _Search:
     ) -> None:
         self.data, self.free, self.s, self.effects, self.progress = data, free, s, effects, progress
         self.timing = Timing()
+        self._stacked: tuple[Timing, RunStack] | None = None
         self.evaluations = 0
         self.initial_cost = float(self.batch_cost(free.x0[:, None])[0])
         self.history: list[float] = [self.initial_cost]
@@ -1377,11 +1374,17 @@ class _Search:
         self.best_cost = np.inf
 
     def _model(self) -> tuple:
-        """What `residuals` and `rmse` take after the parameters: the data and
-        this search's side source, rest level, effects, timing and integration."""
+        """What `residuals` and `rmse` take after the parameters: the data
+        (stacked once per read-out timing) and this search's side source, rest
+        level, effects, timing and integration."""
         s = self.s
+        if self._stacked is None or self._stacked[0] != self.timing:
+            stack = run_stack(
+                self.data, s.side_source, s.rest_rate_deg_s, self.timing, s.integration
+            )
+            self._stacked = (self.timing, stack)
         return (
-            self.data,
+            self._stacked[1],
             s.side_source,
             s.rest_rate_deg_s,
             self.effects,

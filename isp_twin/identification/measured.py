@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from isp_twin.errors import DataError, ResourceNotFound, nearest
+from isp_twin.estimation.simulation_error import SAMPLE_PERIOD_TOLERANCE
 from isp_twin.input_files import load_yaml, read_text
 from isp_twin.output.files import staged_path
 from isp_twin.units import DEG
@@ -87,13 +88,6 @@ SIGNALS: tuple[str, ...] = ("t", "u", "omega", "theta")
 MIN_SAMPLES = 20
 #: Largest allowed deviation of a sample period from the median, relative.
 UNIFORM_TOLERANCE = 0.01
-#: Largest relative difference between a run's measured sample period (the
-#: median step of its time column) and the parameter set's sample_time_s,
-#: shared by `identify` and `diagnose` (`check_sample_period`). The parameters
-#: of Eq. 6 are per sample, so a period off by x scales the model's time
-#: constants by x; 1 % is below the spread of identified values between runs
-#: and lets a logger clock drifting by tens of ppm through.
-SAMPLE_PERIOD_TOLERANCE = 0.01
 #: Savitzky-Golay window [samples] for the rate of angle-only data (odd).
 DERIVATIVE_WINDOW = 11
 

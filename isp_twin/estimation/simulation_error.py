@@ -1,8 +1,17 @@
-"""Several measured runs simulated side by side, for a batch of model variants.
+"""The simulation error both commands minimize: measured runs simulated side
+by side for a batch of model variants.
+
+`identify` (Eq. 9, `isp_twin.identification.fit`) and `diagnose`
+(`isp_twin.diagnosis`) both stack their runs here (`stack_runs`) and take
+their residuals from `residuals`; they differ only in what they ask of the
+stack: `identify` counts every sample after the first and calls a first
+rate below a fixed level rest, `diagnose` leaves a warm-up out and calls a
+first rate within the noise rest.
 
 The runs become rows of one batched call of
-`isp_twin.model.substep_model.simulate_substeps` (padded to the longest), so P parameter sets on R runs cost one time loop of
-P*R rows: the per-step overhead, not the batch size, sets the price.
+`isp_twin.model.substep_model.simulate_substeps` (padded to the longest), so
+P parameter sets on R runs cost one time loop of P*R rows: the per-step
+overhead, not the batch size, sets the price.
 """
 
 from __future__ import annotations
@@ -14,12 +23,12 @@ import numpy as np
 
 from isp_twin.errors import DataError
 from isp_twin.estimation.verdict import noise_floor_of
-from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.parameters import EffectSpec, RateParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
 
 __all__ = [
+    "SAMPLE_PERIOD_TOLERANCE",
     "WARMUP",
     "RunStack",
     "predict",
@@ -28,6 +37,15 @@ __all__ = [
     "residuals_many",
     "stack_runs",
 ]
+
+
+#: Largest relative difference between a run's measured sample period (the
+#: median step of its time column) and the parameter set's sample_time_s,
+#: shared by `identify` and `diagnose` (`check_sample_period`). The parameters
+#: of Eq. 6 are per sample, so a period off by x scales the model's time
+#: constants by x; 1 % is below the spread of identified values between runs
+#: and lets a logger clock drifting by tens of ppm through.
+SAMPLE_PERIOD_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True)
@@ -72,7 +90,10 @@ class RunStack:
 
     def flat(self, x: np.ndarray) -> np.ndarray:
         """The counted samples of ``x`` (..., R, N), concatenated: (..., M)."""
-        return x[..., self.mask]
+        # Boolean indexing of the last axes leaves the result strided along
+        # M; sums along M (the costs) then add in another order than over a
+        # contiguous row, and a cost would depend on the batch it was in.
+        return np.ascontiguousarray(x[..., self.mask])
 
 
 #: Samples at the start of each run that do not count [1]: the simulation
@@ -87,9 +108,20 @@ def stack_runs(
     side: int | None = None,
     gyro_average: bool = False,
     integration: Integration = DEFAULT_INTEGRATION,
+    rest: float | None = None,
 ) -> RunStack:
     """Stack runs (`isp_twin.identification.measured.MeasuredData` or anything with
     ``name, u, omega, angle, dt``).
+
+    Args:
+        runs: the runs; ``angle`` is the angle that chooses the half-plane
+            and that angle-dependent effects see.
+        warmup: samples at each run's start that do not count (at least 1:
+            sample 0 is the initial state).
+        side, gyro_average, integration: as `RunStack`'s.
+        rest: a first measured rate at most this large [rad/s] starts the
+            model at rest; None: at most three noise standard deviations
+            (the noise from the run's first 2000 samples).
 
     Raises:
         DataError: no runs, or runs with different sample periods.
@@ -114,12 +146,15 @@ def stack_runs(
         angle[i, :m] = r.angle
         angle[i, m:] = r.angle[-1]
         mask[i, min(max(warmup, 1), m - 1) : m] = True
-    # The first measured rate is the initial state; a reading within three
-    # noise standard deviations of zero is rest (the stiction branch of
-    # Eq. 5), not a slow motion in the direction of the noise.
+    # The first measured rate is the initial state; a reading within the rest
+    # level is rest (the stiction branch of Eq. 5), not a slow motion in the
+    # direction of the noise.
     for i, r in enumerate(runs):
         w = np.asarray(r.omega, float)
-        if w.size > 8:
+        if rest is not None:
+            if abs(w[0]) <= rest:
+                omega[i, 0] = 0.0
+        elif w.size > 8:
             sigma = noise_floor_of([w[:2000]])
             if abs(w[0]) <= 3.0 * sigma:
                 omega[i, 0] = 0.0
