@@ -17,7 +17,7 @@ import numpy as np
 
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, diagnose
 from isp_twin.diagnosis.synthetic import excitation, make_run, random_effect
-from isp_twin.identification.fit import Timing
+from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import load_parameters
 from isp_twin.model.substep_model import EQ6
 from isp_twin.resources import default_parameters_path

@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from isp_twin.cli import main as cli
-from isp_twin.identification.fit import Settings, simulate_data
+from isp_twin.identification.cost import simulate_data
+from isp_twin.identification.fit import Settings
 from isp_twin.identification.measured import load_measured, mapping_from_options
 from isp_twin.model.parameters import (
     AxisParams,

@@ -43,8 +43,9 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 from substep_kernel_reference import advance_row_by_row  # noqa: E402
 
-from isp_twin.identification.fit import Timing, side_angle  # noqa: E402
 from isp_twin.identification.measured import MeasuredData  # noqa: E402
+from isp_twin.identification.read_out import Timing  # noqa: E402
+from isp_twin.identification.side_angle import side_angle  # noqa: E402
 from isp_twin.model.parameters import RATE_LAYOUT, RateParams  # noqa: E402
 from isp_twin.model.substep_model import (  # noqa: E402
     DEFAULT_INTEGRATION,

@@ -21,8 +21,9 @@ import argparse
 
 import numpy as np
 
-from isp_twin.identification.fit import Timing, rmse
+from isp_twin.identification.cost import rmse
 from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.read_out import Timing
 from isp_twin.model.effects import EFFECTS, register
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
 from isp_twin.model.two_mass_payload import TwoMassResonance

@@ -153,7 +153,7 @@ def test_bad_input_is_one_line_naming_what_and_where(tmp_path, capsys):
 
 
 def test_the_updated_file_records_the_model_and_a_second_diagnosis_uses_it(case, capsys):
-    from isp_twin.identification.fit import recorded_model
+    from isp_twin.identification.read_out import recorded_model
 
     _, folder, files, out, _ = case
     first = json.loads((folder / "result.json").read_text())

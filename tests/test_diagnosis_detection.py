@@ -20,7 +20,7 @@ import pytest
 from isp_twin.diagnosis.search import LIBRARY
 from isp_twin.diagnosis.search import diagnose as _diagnose
 from isp_twin.diagnosis.synthetic import excitation, make_run, random_effect
-from isp_twin.identification.fit import Timing
+from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import load_parameters
 from isp_twin.model.substep_model import EQ6
 from isp_twin.resources import default_parameters_path

@@ -15,8 +15,8 @@ from isp_twin.identification.experiments import (
     generate_set,
     paper_set,
 )
-from isp_twin.identification.fit import regime_visits
 from isp_twin.identification.measured import load_measured
+from isp_twin.identification.side_angle import regime_visits
 from isp_twin.model.axis_model import simulate
 from isp_twin.units import DEG
 

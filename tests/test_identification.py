@@ -13,17 +13,12 @@ import pytest
 
 from isp_twin.cli import main
 from isp_twin.errors import DataError
+from isp_twin.identification.cost import rmse
+from isp_twin.identification.equation_error import equation_error_estimate
 from isp_twin.identification.experiments import PAPER_SET, generate_set
-from isp_twin.identification.fit import (
-    IdentificationStatus,
-    Settings,
-    equation_error_estimate,
-    fused_angle,
-    identify,
-    rmse,
-    to_axis_params,
-)
+from isp_twin.identification.fit import IdentificationStatus, Settings, identify, to_axis_params
 from isp_twin.identification.measured import save_measured
+from isp_twin.identification.side_angle import fused_angle
 from isp_twin.model.parameters import (
     RATE_LAYOUT,
     AxisParams,

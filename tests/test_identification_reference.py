@@ -84,12 +84,12 @@ def test_the_verdict_states_every_set_against_its_noise_floor(identified):
 
 
 def test_a_coulomb_level_at_zero_in_the_start_is_moved_inside():
-    """`_interior_start`: a b·Tc the bounded equation-error fit left at (near) 0
+    """`interior_start`: a b·Tc the bounded equation-error fit left at (near) 0
     starts at half the static level (its log-variable has a gradient there);
     every other quantity, and a b·Tc away from 0, is kept as it is."""
     import numpy as np
 
-    from isp_twin.identification.fit import _interior_start
+    from isp_twin.identification.search_space import interior_start
     from isp_twin.model.parameters import RATE_LAYOUT
 
     table = np.array(
@@ -100,7 +100,7 @@ def test_a_coulomb_level_at_zero_in_the_start_is_moved_inside():
             [0.80, 1e-4, 2e-2, 2e-2, 100.0],  # Tc = Ts: kept
         ]
     )
-    out = RATE_LAYOUT.as_table(_interior_start(RATE_LAYOUT.from_table(table)))
+    out = RATE_LAYOUT.as_table(interior_start(RATE_LAYOUT.from_table(table)))
     coulomb = RATE_LAYOUT.field_index("coulomb")
     np.testing.assert_array_equal(out[:, coulomb], [1.5e-4, 1.5e-4, 1e-4, 2e-2])
     others = [i for i in range(RATE_LAYOUT.n_fields) if i != coulomb]
@@ -111,7 +111,7 @@ def test_a_slow_reference_axis_whose_start_has_no_coulomb_level_reaches_the_nois
     tmp_path,
 ):
     """Regression on dev axis 1002 (time constant 0.34 s; it shaped
-    `_interior_start`, so this pins the fix, it does not validate it): the
+    `interior_start`, so this pins the fix, it does not validate it): the
     equation-error start put b·Tc of two regimes at 0 and the least squares
     ran out of budget with the Stribeck curve of R+ off (held-out 3.6 noise
     sigmas). Started inside, train and held-out are within issue 8's 1.3."""

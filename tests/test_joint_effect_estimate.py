@@ -18,10 +18,10 @@ import math
 import numpy as np
 import pytest
 
-from isp_twin.identification.fit import (
+from isp_twin.identification.cost import rmse
+from isp_twin.identification.equation_error import (
     equation_error_estimate,
     joint_equation_error_estimate,
-    rmse,
 )
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.parameters import EffectSpec

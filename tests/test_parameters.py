@@ -101,12 +101,8 @@ def test_the_fitted_with_block_round_trips_and_its_absence_means_none(paper_para
 def test_identify_records_the_model_and_timing_it_fitted_with():
     import numpy as np
 
-    from isp_twin.identification.fit import (
-        IdentificationResult,
-        Timing,
-        recorded_model,
-        to_axis_params,
-    )
+    from isp_twin.identification.fit import IdentificationResult, to_axis_params
+    from isp_twin.identification.read_out import Timing, recorded_model
     from isp_twin.model.parameters import RateParams
     from isp_twin.model.substep_model import Integration
     from isp_twin.resources import default_parameters_path

@@ -11,8 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from isp_twin.identification.fit import Timing, rmse
+from isp_twin.identification.cost import rmse
 from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.read_out import Timing
 from isp_twin.model.effects import make_effect
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
 from isp_twin.model.substep_model import (

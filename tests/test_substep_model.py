@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isp_twin.identification.fit import gyro_reading
+from isp_twin.identification.read_out import gyro_reading
 from isp_twin.model.axis_model import simulate
 from isp_twin.model.effects import Effect, make_effect
 from isp_twin.model.parameters import EffectSpec, RateParams
@@ -105,8 +105,9 @@ def test_true_parameters_of_a_reference_axis_reach_the_noise_only_sub_stepped():
     truth of a reference axis written in the Eq. 6 form is at the noise with
     m = 10, and well above it with Eq. 6 (m = 1). Seed 2003 (time constant
     0.53 s, sharp Stribeck curves) shaped no choice."""
-    from isp_twin.identification.fit import Timing, rmse
+    from isp_twin.identification.cost import rmse
     from isp_twin.identification.measured import MeasuredData
+    from isp_twin.identification.read_out import Timing
     from isp_twin.reference import design_experiment
 
     exp = design_experiment(2003)

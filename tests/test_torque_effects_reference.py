@@ -9,7 +9,7 @@ change per sample, down in the + regimes and up in the - regimes
 checks that identity on a reference run with rests and breakaways.
 
 The joint equation-error estimate's torque columns carry the exact hold of
-an acceleration over a sample (`fit._hold_factor`): on the fast (5.4 ms)
+an acceleration over a sample (`equation_error._hold_factor`): on the fast (5.4 ms)
 axis of development seed 1001 every torque strength comes out closer to
 the truth with it than without it.
 
@@ -32,10 +32,10 @@ import pytest
 from isp_twin.cli import main
 from isp_twin.diagnosis.search import diagnose
 from isp_twin.estimation.verdict import CONVERGED_RATIO
-from isp_twin.identification.fit import (
+from isp_twin.identification.cost import simulate_data
+from isp_twin.identification.equation_error import (
     equation_error_estimate,
     joint_equation_error_estimate,
-    simulate_data,
 )
 from isp_twin.identification.measured import MeasuredData, save_measured
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams, load_parameters

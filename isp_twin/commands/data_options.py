@@ -10,12 +10,12 @@ from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.errors import DataError, ParameterError
-from isp_twin.identification.fit import Timing, recorded_model
 from isp_twin.identification.measured import (
     DataMapping,
     load_data_description,
     mapping_from_options,
 )
+from isp_twin.identification.read_out import Timing, recorded_model
 from isp_twin.model.parameters import MAX_SUBSTEPS, AxisParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, EQ6, Integration
 

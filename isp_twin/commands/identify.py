@@ -16,9 +16,10 @@ from isp_twin.commands.data_options import (
     mapping_from_args,
 )
 from isp_twin.errors import ParameterError
-from isp_twin.identification.fit import SIDE_SOURCES, Settings, identify, to_axis_params
+from isp_twin.identification.fit import Settings, identify, to_axis_params
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.report import identification_verdict, result_json, write_report
+from isp_twin.identification.side_angle import SIDE_SOURCES
 from isp_twin.model.parameters import load_parameters, save_parameters
 from isp_twin.output.files import check_outputs, transaction, write_text_atomic
 from isp_twin.resources import default_parameters_path

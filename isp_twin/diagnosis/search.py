@@ -81,22 +81,19 @@ from isp_twin.estimation.simulation_error import RunStack, predict_one, residual
 from isp_twin.estimation.simulation_error import residuals as _simulation_residuals
 from isp_twin.estimation.simulation_error import stack_runs as _stack_runs
 from isp_twin.estimation.verdict import CONVERGED_RATIO, json_safe
-from isp_twin.identification.fit import (
+from isp_twin.identification.cost import rmse
+from isp_twin.identification.equation_error import (
     JOINT_FORMS,
-    TIMINGS,
-    IdentificationResult,
     JointEstimate,
-    Timing,
     equation_error_estimate,
-    fitted_with,
-    identify,
     joint_equation_error_estimate,
-    rmse,
-    side_angle,
 )
+from isp_twin.identification.fit import IdentificationResult, identify
 from isp_twin.identification.fit import Settings as IdSettings
 from isp_twin.identification.gyro_error import sensor_bias_joint_estimate
 from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
+from isp_twin.identification.read_out import TIMINGS, Timing, fitted_with
+from isp_twin.identification.side_angle import side_angle
 from isp_twin.model.effects import EFFECTS, effect_class
 from isp_twin.model.effects.torque_offset import ImpliedOffset, implied_offset
 from isp_twin.model.parameters import (

@@ -35,7 +35,7 @@ import numpy as np
 
 from isp_twin.errors import ParameterError
 from isp_twin.estimation.verdict import noise_floor_of
-from isp_twin.identification.fit import JointEstimate
+from isp_twin.identification.equation_error import JointEstimate
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.parameters import EffectSpec, RateParams
 

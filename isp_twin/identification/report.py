@@ -13,7 +13,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
-from isp_twin.identification.fit import IdentificationResult, rmse, simulate_data
+from isp_twin.identification.cost import rmse, simulate_data
+from isp_twin.identification.fit import IdentificationResult
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.parameters import PAPER_FIELDS, RATE_LAYOUT, AxisParams
 from isp_twin.output.files import staged_path, write_text_atomic

@@ -1,0 +1,122 @@
+"""Eq. 9 on measured runs: the runs stacked as identify sees them
+(`run_stack`) for the simulation error both commands share
+(`isp_twin.estimation.simulation_error`), its residuals and RMS, and the
+data's rate noise."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from isp_twin.estimation.simulation_error import RunStack, predict_one, stack_runs
+from isp_twin.estimation.simulation_error import residuals as simulation_residuals
+from isp_twin.estimation.verdict import noise_floor_of
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.read_out import Timing
+from isp_twin.identification.side_angle import side_angle
+from isp_twin.model.parameters import EffectSpec, RateParams
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
+from isp_twin.units import DEG
+
+__all__ = [
+    "run_stack",
+    "simulate_data",
+    "residuals",
+    "rmse",
+    "rate_noise",
+]
+
+
+def run_stack(
+    data: Sequence[MeasuredData],
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+) -> RunStack:
+    """The runs as Eq. 9 sees them, stacked for the shared simulation error
+    (`isp_twin.estimation.simulation_error`): the half-plane from the
+    `side_source` angle read at `timing`, every sample after the first
+    counted, a first rate within `rest_rate_deg_s` [deg/s] taken as rest."""
+    shift = timing.side_shift / integration.substeps
+    runs = [replace(d, angle=side_angle(d, side_source, shift)) for d in data]
+    return stack_runs(
+        runs,
+        warmup=1,
+        gyro_average=timing.gyro_average,
+        integration=integration,
+        rest=rest_rate_deg_s * DEG,
+    )
+
+
+def simulate_data(
+    rate: RateParams,
+    d: MeasuredData,
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+):
+    """The model (Eq. 6 in `integration`'s sub-steps) driven by the run's
+    command and measured angle; `AxisResponse`.
+
+    `effects` (a parameter file's ``effects:``) are held fixed. With
+    ``timing.gyro_average`` the returned rate is what a gyro averaging over
+    each sample period reads (`Timing`).
+    """
+    stack = run_stack([d], side_source, rest_rate_deg_s, timing, integration)
+    resp = predict_one(stack, rate.to_vector(), tuple(effects))
+    return type(resp)(
+        *(
+            None if a is None else a[0]
+            for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
+        )
+    )
+
+
+def residuals(
+    rate: RateParams,
+    data: Sequence[MeasuredData] | RunStack,
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+) -> np.ndarray:
+    """Simulated minus measured rate [rad/s], sample 0 of each set left out.
+
+    Shape (P, M) for batched params (M = total samples), else (M,). The
+    shared simulation error (`isp_twin.estimation.simulation_error.residuals`)
+    on `run_stack`'s stack; ``data`` may be that stack already (then the
+    side source, rest level, timing and integration are the stack's).
+    """
+    single = np.ndim(rate.pole) == 1
+    stack = (
+        data
+        if isinstance(data, RunStack)
+        else run_stack(data, side_source, rest_rate_deg_s, timing, integration)
+    )
+    out = -simulation_residuals(stack, np.atleast_2d(rate.to_vector()), fixed=tuple(effects))
+    return out[0] if single else out
+
+
+def rmse(
+    rate: RateParams,
+    data: Sequence[MeasuredData],
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+) -> float | np.ndarray:
+    """Eq. 9: RMS rate error over all sets at once [rad/s]."""
+    e = residuals(rate, data, side_source, rest_rate_deg_s, effects, timing, integration)
+    return np.sqrt(np.mean(e**2, axis=-1))
+
+
+def rate_noise(data: Sequence[MeasuredData]) -> float:
+    """White rate-noise standard deviation of the measured runs [rad/s] (`noise_floor_of`)."""
+    return noise_floor_of([d.omega for d in data])

@@ -1,0 +1,89 @@
+"""Which half-plane (side) each sample is in: the angle the model is driven
+by (teacher forcing), fused with the integrated gyro rate or as measured,
+wrapped, or a fixed side (`SIDE_SOURCES`); why: `isp_twin.identification.fit`."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from isp_twin.errors import ParameterError
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.friction import regime_index
+from isp_twin.model.parameters import RATE_LAYOUT
+from isp_twin.units import DEG
+
+__all__ = [
+    "SIDE_SOURCES",
+    "FUSION_WINDOW",
+    "fused_angle",
+    "side_angle",
+    "regime_visits",
+]
+
+#: Side sources: where each step's side (R/L half-plane) is read from (the
+#: fused or raw measured angle, the wrapped angle, or a fixed side).
+SIDE_SOURCES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
+#: Window of the angle/rate fusion [samples] (`fused_angle`).
+FUSION_WINDOW = 201
+
+
+def fused_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
+    """The measured angle refined by the integrated rate [rad], shape (N,).
+
+    ``integral(omega) + smooth(angle - integral(omega))`` with a centred moving
+    average of `window` samples: the rate supplies the fine timing, the angle
+    the absolute level (and removes gyro drift slower than the window).
+    """
+    integral = np.cumsum(data.omega) * data.dt
+    gap = data.angle - integral
+    n = gap.shape[0]
+    w = max(1, min(window, n if n % 2 else n - 1))
+    padded = np.pad(gap, w // 2, mode="edge")
+    smooth = np.convolve(padded, np.ones(w) / w, mode="valid")
+    return integral + smooth
+
+
+def side_angle(data: MeasuredData, side_source: str = "measured", shift: float = 0.0) -> np.ndarray:
+    """The angle [rad] whose sign selects the half-plane of each step (see module doc).
+
+    Entry k picks the regime of the step from sample k to k+1. With
+    ``measured`` it is the fused angle at sample ``k + shift`` (linear
+    interpolation). Eq. 6 takes the angle at the start of the step
+    (``shift = 0``), but a real axis crosses angle 0 between samples and what
+    its gyro sample means decides which time is right: a point-sampled rate
+    is the rate at the sample, so the regime holding for most of the step is
+    the one at mid-step (``shift = 0.5``); a rate averaged over the sample
+    period describes the half sample before it (``shift = 0``). A wrong
+    choice makes every crossing half a sample early or late, an error of the
+    size of the friction change that then decays with the pole (20-30 noise
+    sigmas on a 10 ms axis). `identify` picks the shift from the data.
+    """
+    if side_source == "measured":
+        y = fused_angle(data)
+        if shift == 0.0:
+            return y
+        k = np.arange(y.size, dtype=float)
+        return np.interp(k + shift, k, y)
+    if side_source == "raw":
+        return data.angle
+    if side_source == "wrap":
+        return np.angle(np.exp(1j * data.angle))
+    if side_source == "right":
+        return np.ones_like(data.angle)
+    if side_source == "left":
+        return -np.ones_like(data.angle)
+    raise ParameterError(f"side source '{side_source}' unknown; allowed: {', '.join(SIDE_SOURCES)}")
+
+
+def regime_visits(
+    data: Sequence[MeasuredData], side_source: str = "measured", rest_rate_deg_s: float = 0.1
+) -> np.ndarray:
+    """Moving samples (|rate| above the rest level) per regime, shape (4,)."""
+    counts = np.zeros(RATE_LAYOUT.n_regimes, dtype=int)
+    for d in data:
+        moving = np.abs(d.omega) > rest_rate_deg_s * DEG
+        r = regime_index(side_angle(d, side_source), d.omega)[moving]
+        counts += np.bincount(r, minlength=RATE_LAYOUT.n_regimes)
+    return counts
