@@ -28,6 +28,7 @@ from isp_twin.model.parameters import EffectSpec, RateParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
 
 __all__ = [
+    "DIVERGED",
     "SAMPLE_PERIOD_TOLERANCE",
     "WARMUP",
     "RunStack",
@@ -96,6 +97,9 @@ class RunStack:
         return np.ascontiguousarray(x[..., self.mask])
 
 
+#: Rate beyond which a simulated variant has diverged [rad/s]; its reading is
+#: held there, so it loses by a large, finite error.
+DIVERGED = 1e3
 #: Samples at the start of each run that do not count [1]: the simulation
 #: starts from the measured (noisy) rate, and which way the first stick/slip
 #: decisions go takes a few time constants (1/(1-a) ~ 10 samples) to forget.
@@ -207,14 +211,7 @@ def predict(
         integration=stack.integration,
         gyro_average=stack.gyro_average,
     )
-    if not np.all(np.isfinite(resp.omega)):
-        # A diverging variant is a bad parameter set, not an error: make it lose.
-        resp = type(resp)(
-            np.nan_to_num(resp.omega, nan=1e3, posinf=1e3, neginf=-1e3),
-            resp.angle,
-            resp.regime,
-            resp.omega_true,
-        )
+    resp = _diverged_held(resp)
     shape = (p, r, n)
     return type(resp)(
         resp.omega.reshape(shape),
@@ -222,6 +219,18 @@ def predict(
         resp.regime.reshape(shape),
         None if resp.omega_true is None else resp.omega_true.reshape(shape),
     )
+
+
+def _diverged_held(resp):
+    """The response with a diverging variant's reading held at `DIVERGED`.
+
+    A diverging variant is a bad parameter set, not an error: it loses by a
+    large, finite error (its square must not overflow).
+    """
+    if np.all(np.abs(resp.omega) <= DIVERGED):  # False on NaN too
+        return resp
+    held = np.clip(np.nan_to_num(resp.omega, nan=DIVERGED), -DIVERGED, DIVERGED)
+    return type(resp)(held, resp.angle, resp.regime, resp.omega_true)
 
 
 def predict_one(stack: RunStack, rate_vector: np.ndarray, fixed: Sequence[EffectSpec] = ()):

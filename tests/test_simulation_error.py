@@ -1,0 +1,124 @@
+"""The estimation engine's simulation error and local solvers, shared by
+identify and diagnose (`isp_twin.estimation.simulation_error`,
+`isp_twin.estimation.least_squares`; docs/identification.md, "Estimation engine")."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from isp_twin.estimation.least_squares import FitStatus, trust_region
+from isp_twin.estimation.simulation_error import residuals, stack_runs
+from isp_twin.identification.cost import residuals as eq9_residuals
+from isp_twin.identification.cost import rmse, run_stack
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.parameters import RateParams
+from isp_twin.units import DEG
+
+
+@pytest.fixture(scope="module")
+def runs_and_rate(paper_params):
+    """Two short runs of a paper-like axis (Eq. 7 commands, made in code) and its rate form."""
+    rate = paper_params.axis("inner_az").rate_params()
+    dt = 1e-3
+    t = np.arange(1500) * dt
+    out = []
+    for i, (amp, off) in enumerate(((750.0, 0.0), (600.0, -100.0))):
+        u = amp * np.cos(2 * np.pi * 1.0 * t) + off
+        # Any rate/angle pair will do for the properties below; a smooth one.
+        omega = 0.2 * np.sin(2 * np.pi * t) * (i + 1)
+        angle = np.cumsum(omega) * dt - 0.01
+        out.append(MeasuredData(f"run{i}", t, u, omega, angle, None, dt))
+    return out, rate
+
+
+def _spread(rate: RateParams, n: int) -> np.ndarray:
+    """n different rate vectors around `rate` (rows), the first `rate` itself."""
+    rng = np.random.default_rng(3)
+    base = rate.to_vector()
+    return base[None] * (
+        1.0 + 0.05 * rng.standard_normal((n, base.size)) * (np.arange(n) > 0)[:, None]
+    )
+
+
+def test_a_cost_does_not_depend_on_the_batch_it_is_in(runs_and_rate):
+    """The residuals of a parameter set alone and as one row of a batch of
+    different sets are the same numbers, and so is their sum of squares
+    (the search compares costs computed both ways)."""
+    runs, rate = runs_and_rate
+    stack = stack_runs(runs, warmup=1)
+    batch = _spread(rate, 5)
+    together = residuals(stack, batch)
+    for k in range(batch.shape[0]):
+        alone = residuals(stack, batch[k : k + 1])
+        np.testing.assert_array_equal(alone[0], together[k])
+        assert float(alone[0] @ alone[0]) == float(together[k] @ together[k])
+
+
+def test_identify_counts_every_sample_after_the_first_and_diagnose_leaves_a_warmup(runs_and_rate):
+    runs, rate = runs_and_rate
+    n_total = sum(len(r) for r in runs)
+    assert eq9_residuals(rate, runs).size == n_total - len(runs)
+    assert stack_runs(runs, warmup=50).n_samples == n_total - 50 * len(runs)
+
+
+def test_identify_is_the_engine_with_its_own_options(runs_and_rate):
+    """Eq. 9's residual is the engine's (sign: simulated minus measured) on
+    identify's stack, and a run given as a stack gives the same numbers."""
+    runs, rate = runs_and_rate
+    stack = run_stack(runs)
+    e_engine = residuals(stack, rate.to_vector()[None])[0]
+    np.testing.assert_array_equal(eq9_residuals(rate, runs), -e_engine)
+    np.testing.assert_array_equal(eq9_residuals(rate, stack), -e_engine)
+
+
+def test_the_rest_rule_decides_the_initial_state(runs_and_rate):
+    """A first rate within the rest level starts the model at rest, above it
+    at the measured rate; the noise rule (rest=None) calls a first rate of
+    many noise sigmas motion."""
+    runs, _ = runs_and_rate
+    r = runs[0]
+    moving = replace(r, omega=np.concatenate([[0.05], r.omega[1:]]))
+    assert stack_runs([moving], rest=0.1 * DEG).omega[0, 0] == 0.05
+    assert stack_runs([moving], rest=5.0 * DEG).omega[0, 0] == 0.0
+    rng = np.random.default_rng(0)
+    noisy = replace(r, omega=np.concatenate([[0.05], 1e-4 * rng.standard_normal(len(r) - 1)]))
+    assert stack_runs([noisy], rest=None).omega[0, 0] == 0.05
+
+
+def test_a_diverging_parameter_set_loses_instead_of_giving_nan(runs_and_rate):
+    """A pole outside the unit circle makes the model blow up: the cost is
+    large and finite (the searches compare it), in identify's Eq. 9 too."""
+    runs, rate = runs_and_rate
+    bad = rate.to_vector().copy()
+    bad[0] = 1.5  # the first regime's pole a
+    from isp_twin.model.parameters import RATE_LAYOUT
+
+    assert RATE_LAYOUT.fields[0] == "pole"
+    cost = rmse(RateParams.from_vector(np.vstack([rate.to_vector(), bad])), runs)
+    assert np.all(np.isfinite(cost)) and cost[1] > 100 * cost[0]
+
+
+def test_trust_region_recovers_an_exponential_and_reports_a_spent_budget():
+    """y = 2 exp(-3 t) + noise: the solver finds (2, 3) within the noise's
+    reach; with a budget of 2 evaluations it stops with the budget spent."""
+    rng = np.random.default_rng(1)
+    t = np.linspace(0.0, 2.0, 400)
+    y = 2.0 * np.exp(-3.0 * t) + 1e-3 * rng.standard_normal(t.size)
+
+    def resid(p):
+        return p[0] * np.exp(-p[1] * t) - y
+
+    def jac(p):
+        e = np.exp(-p[1] * t)
+        return np.column_stack([e, -p[0] * t * e])
+
+    lo, hi = np.array([0.0, 0.0]), np.array([10.0, 10.0])
+    fit = trust_region(resid, jac, np.array([1.0, 1.0]), lo, hi, 200, 1e-10)
+    assert fit.status is FitStatus.CONVERGED
+    np.testing.assert_allclose(fit.x, [2.0, 3.0], rtol=5e-3)
+    assert fit.sse == pytest.approx(float(resid(fit.x) @ resid(fit.x)))
+    short = trust_region(resid, jac, np.array([1.0, 1.0]), lo, hi, 2, 1e-10)
+    assert short.status is FitStatus.MAX_ITERATIONS
