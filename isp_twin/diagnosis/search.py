@@ -22,7 +22,7 @@ Options of `diagnose`:
     side_source: where the half-plane of the regimes comes from
         (`FIXED_SIDE`): ``measured`` (the measured angle fused with the
         integrated rate, read at the time `identify` finds for the data:
-        `isp_twin.identification.fit.side_angle`), ``raw`` (the angle as
+        `isp_twin.identification.side_angle.side_angle`), ``raw`` (the angle as
         read), ``right`` or ``left`` (fixed: a motor that spins freely,
         where the split means nothing).
     seed: seed of the base model's global search.
@@ -39,7 +39,7 @@ Options of `diagnose`:
         parameter file was identified with; `Integration`).
     timing: the data's read-out timing when known (`Timing`); None:
         found by the base model's global search (`base_search`), else
-        the one of `isp_twin.identification.fit.TIMINGS` that fits best at
+        the one of `isp_twin.identification.read_out.TIMINGS` that fits best at
         the file's parameters, as `identify` chooses it.
     reopen: re-start the `REOPEN_TOP` leading significant candidates'
         rate parameters from the equation-error start with their effect
@@ -51,7 +51,7 @@ Options of `diagnose`:
         (docs/diagnosis.md "Re-opened rate parameters").
     joint: in round 1, restart the leading candidates (and the base)
         from base and effect estimated together
-        (`isp_twin.identification.fit.joint_equation_error_estimate`),
+        (`isp_twin.identification.equation_error.joint_equation_error_estimate`),
         refine them jointly, and refit the leading significant one
         globally when it is not at the noise (docs/diagnosis.md "Joint
         start"); False: the local refits alone (before issue 8's joint

@@ -64,7 +64,7 @@ class RunStack:
             paper's rule), else a fixed side (`SIDE_R`, `SIDE_L`) for a freely
             spinning motor.
         gyro_average: the model's rate is read as a gyro averaging over the
-            sample (`isp_twin.identification.fit.Timing`).
+            sample (`isp_twin.identification.read_out.Timing`).
         integration: how the model integrates a sample
             (`isp_twin.model.substep_model.Integration`).
     """
