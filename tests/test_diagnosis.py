@@ -161,9 +161,9 @@ def test_a_fixed_side_picks_the_regimes_as_a_positive_angle_would(rate):
 def test_reopened_rates_never_fit_worse_and_keep_a_known_cable_spring(rate, seed):
     # The candidate refitted from a base that absorbed the spring into its
     # friction levels, then re-opened from the equation-error start with the
-    # spring held (`search._reopen_rates`): a re-start is kept only if it fits
+    # spring held (`rounds._reopen_rates`): a re-start is kept only if it fits
     # the training runs better, and the spring stays the one that made the data.
-    from isp_twin.diagnosis.search import _reopen_rates
+    from isp_twin.diagnosis.rounds import _reopen_rates
 
     rng = np.random.default_rng(seed)
     truth = EffectSpec("cable_spring", {"stiffness_1_s2": 40.0, "offset_rad_s2": 0.0})

@@ -17,7 +17,7 @@ from functools import partial
 import numpy as np
 import pytest
 
-from isp_twin.diagnosis.search import LIBRARY
+from isp_twin.diagnosis.prepared_runs import LIBRARY
 from isp_twin.diagnosis.search import diagnose as _diagnose
 from isp_twin.diagnosis.synthetic import excitation, make_run, random_effect
 from isp_twin.identification.read_out import Timing

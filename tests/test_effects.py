@@ -144,7 +144,7 @@ def test_one_parameter_check_serves_the_scalar_and_the_batched_effect(params):
 
 
 def test_diagnosis_tests_the_registered_effects_in_report_order():
-    from isp_twin.diagnosis.search import LIBRARY as CANDIDATES
+    from isp_twin.diagnosis.prepared_runs import LIBRARY as CANDIDATES
 
     assert CANDIDATES == LIBRARY == tuple(EFFECTS)
 

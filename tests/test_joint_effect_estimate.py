@@ -109,7 +109,8 @@ def test_a_spring_and_an_unbalance_equally_good_are_reported_as_ambiguous():
     """Item 4 of the issue: effects the data cannot tell apart (`ALIKE`), both
     significant and within the selection's tie margin held out, are listed
     with the selected one; a worse or not significant partner is not."""
-    from isp_twin.diagnosis.search import RoundResult, _equivalent
+    from isp_twin.diagnosis.result import RoundResult
+    from isp_twin.diagnosis.rounds import equivalent_effects
     from isp_twin.diagnosis.selection import MIN_GAIN, Verdict
 
     floor = 1e-3
@@ -124,6 +125,6 @@ def test_a_spring_and_an_unbalance_equally_good_are_reported_as_ambiguous():
         )
         return RoundResult(None, {}, verdicts, "unbalance", (), (), floor)
 
-    assert _equivalent(round_with(tie, True)) == ("cable_spring",)
-    assert _equivalent(round_with(far, True)) == ()
-    assert _equivalent(round_with(tie, False)) == ()
+    assert equivalent_effects(round_with(tie, True)) == ("cable_spring",)
+    assert equivalent_effects(round_with(far, True)) == ()
+    assert equivalent_effects(round_with(tie, False)) == ()

@@ -16,7 +16,8 @@ from isp_twin.commands.data_options import (
     model_from_file,
 )
 from isp_twin.commands.progress import working
-from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, FIXED_SIDE
+from isp_twin.diagnosis.prepared_runs import FIXED_SIDE
+from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters

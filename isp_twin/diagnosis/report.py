@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from isp_twin.diagnosis.candidates import BASELINE
-from isp_twin.diagnosis.search import Diagnosis
+from isp_twin.diagnosis.result import Diagnosis
 from isp_twin.diagnosis.selection import BLOCK, MIN_GAIN, MIN_SHARE, Z_MIN
 from isp_twin.output.files import staged_path, write_text_atomic
 from isp_twin.units import DEG

@@ -56,7 +56,7 @@ __all__ = [
 ]
 
 #: Effect name -> class: every effect this package ships, listed once here, in
-#: the order `diagnose` tests and reports them (`isp_twin.diagnosis.search.LIBRARY`).
+#: the order `diagnose` tests and reports them (`isp_twin.diagnosis.prepared_runs.LIBRARY`).
 EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (

@@ -1,0 +1,235 @@
+"""What `diagnose` returns: each round's outcome (`RoundResult`) and the
+diagnosis (`Diagnosis`) with its JSON form."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from isp_twin.diagnosis.candidates import (
+    BASELINE,
+    CandidateFit,
+)
+from isp_twin.diagnosis.residual import ResidualAnalysis
+from isp_twin.diagnosis.selection import Verdict
+from isp_twin.estimation.simulation_error import RunStack
+from isp_twin.estimation.verdict import CONVERGED_RATIO, json_safe
+from isp_twin.identification.read_out import Timing
+from isp_twin.model.effects.torque_offset import ImpliedOffset
+from isp_twin.model.parameters import (
+    ParameterSet,
+)
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
+from isp_twin.units import DEG
+
+__all__ = [
+    "RoundResult",
+    "Diagnosis",
+    "rms_of",
+]
+
+
+@dataclass(frozen=True)
+class RoundResult:
+    """One round of the loop.
+
+    Attributes:
+        baseline: the current model refitted without a new effect.
+        fits: candidate name -> its refit (trained on all training runs).
+        verdicts: one per candidate, best held-out RMSE first (the ranking).
+        selected: the accepted candidate's name, or `BASELINE`.
+        holdout_before / holdout_after: held-out residuals per run of the
+            baseline and of the selected model [rad/s].
+        noise_floor: noise estimate from the baseline's held-out residual [rad/s].
+    """
+
+    baseline: CandidateFit
+    fits: dict
+    verdicts: tuple[Verdict, ...]
+    selected: str
+    holdout_before: tuple
+    holdout_after: tuple
+    noise_floor: float
+
+    @property
+    def model(self) -> CandidateFit:
+        return self.fits[self.selected] if self.selected != BASELINE else self.baseline
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """The whole diagnosis of one axis.
+
+    Attributes:
+        axis: gimbal axis name.
+        rounds: the rounds, in order.
+        rmse_before: held-out RMS error of the given model, unchanged [rad/s].
+        rmse_after: held-out RMS error of the final model [rad/s].
+        noise_floor: noise estimate [rad/s] (first round).
+        params_out: the updated parameter set (effects added, rate parameters
+            re-identified). Without a new effect: the plain re-identification
+            if it passes the acceptance rule against the given parameters
+            (`refit`), else the input set.
+        analysis_before / analysis_after: residual analyses on the training
+            runs, given model and final model.
+        holdout_names: the held-out runs (or "cross-validation").
+        refit: the re-identification without a new effect judged against the
+            given parameters.
+        tentative: effects that passed the acceptance rule but left the
+            held-out error above `CONVERGED_RATIO` noise floors: not adopted
+            (an effect that does not bring the model to the noise may be
+            standing in for a base model that does not fit).
+        timing: the data's read-out timing (found by the base model's fit,
+            or at the file's parameters).
+        integration: how the model integrates a sample (`Integration`).
+        equivalent: effects the data cannot tell apart from the first
+            accepted one (`ALIKE`, significant too, held-out MSE within the
+            selection's tie margin): the answer is ambiguous between them.
+    """
+
+    axis: str
+    rounds: tuple[RoundResult, ...]
+    rmse_before: float
+    rmse_after: float
+    noise_floor: float
+    params_out: ParameterSet
+    analysis_before: ResidualAnalysis
+    analysis_after: ResidualAnalysis
+    residual_before: tuple = ()
+    residual_after: tuple = ()
+    holdout_names: tuple[str, ...] = ()
+    refit: Verdict | None = None
+    stack: RunStack | None = field(default=None, repr=False)
+    tentative: tuple[str, ...] = ()
+    timing: Timing = Timing()
+    integration: Integration = DEFAULT_INTEGRATION
+    equivalent: tuple[str, ...] = ()
+    implied_torque_offset: ImpliedOffset | None = None
+
+    @property
+    def accepted(self) -> tuple[CandidateFit, ...]:
+        return tuple(r.model for r in self.rounds if r.selected != BASELINE)
+
+    @property
+    def selected_effect(self) -> str:
+        """The first accepted effect, or ``none``."""
+        acc = self.accepted
+        return acc[0].name if acc else BASELINE
+
+    def to_json(self) -> dict:
+        """The ``--json`` record (see docs/diagnosis.md)."""
+        first = self.rounds[0]
+        return json_safe(
+            {
+                "axis": self.axis,
+                **self._verdict_json(),
+                **self._model_json(),
+                **self._effects_json(),
+                "ranking": [
+                    {
+                        "name": v.name,
+                        "holdout_rmse": v.holdout_rmse,
+                        "improvement_z": v.improvement_z,
+                        "delta_bic": v.delta_bic,
+                        "significant": v.significant,
+                        "reason": v.reason,
+                        "parameters": dict(first.fits[v.name].params),
+                    }
+                    for v in first.verdicts
+                ],
+                "rounds": [
+                    {"selected": r.selected, "ranking": [v.name for v in r.verdicts]}
+                    for r in self.rounds
+                ],
+                "analysis_before": self.analysis_before.summary(),
+                "analysis_after": self.analysis_after.summary(),
+            }
+        )
+
+    def _verdict_json(self) -> dict:
+        """Whether the final model is at the noise, and the effects set aside."""
+        ratio = self.rmse_after / self.noise_floor if self.noise_floor > 0 else float("inf")
+        converged = bool(ratio <= CONVERGED_RATIO)
+        return {
+            "converged": converged,
+            "rmse_over_noise_floor": ratio,
+            "verdict": (
+                f"held-out RMS error {ratio:.2f} x the noise floor: "
+                + (
+                    "the model is at the noise"
+                    if converged
+                    else "NOT CONVERGED: the model has not converged or lacks an effect the "
+                    "library does not have (try more --iterations, other runs, or a new effect)"
+                )
+            ),
+            "tentative_effects": list(self.tentative),
+            "equivalent_effects": list(self.equivalent),
+            "equivalent_torque_offset": _offset_json(self.implied_torque_offset),
+        }
+
+    def _model_json(self) -> dict:
+        """How the data were read and the model integrated, and the record's units."""
+        return {
+            "timing": {
+                "gyro_average": self.timing.gyro_average,
+                "side_shift_steps": self.timing.side_shift,
+            },
+            "integration": {
+                "substeps_per_sample": self.integration.substeps,
+                "midpoint_friction": self.integration.midpoint_friction,
+                "split_reversals": self.integration.split_reversals,
+                "exact_effect_hold": self.integration.exact_effect_hold,
+            },
+            "units": {
+                "rmse_before": "rad/s",
+                "rmse_baseline_refit": "rad/s",
+                "rmse_after": "rad/s",
+                "noise_floor": "rad/s",
+                "holdout_rmse": "rad/s",
+                "effect_parameters": "SI, unit in the parameter name",
+            },
+        }
+
+    def _effects_json(self) -> dict:
+        """The selected effects with their parameters, and the held-out errors."""
+        acc = self.accepted
+        return {
+            "rmse_before_deg_s": self.rmse_before / DEG,
+            "rmse_after_deg_s": self.rmse_after / DEG,
+            "noise_floor_deg_s": self.noise_floor / DEG,
+            "selected_effect": self.selected_effect,
+            "effect_parameters": dict(acc[0].params) if acc else {},
+            "effect_ci95": dict(acc[0].ci95) if acc else {},
+            "all_selected": [
+                {"name": f.name, "parameters": dict(f.params), "ci95": dict(f.ci95)} for f in acc
+            ],
+            "rmse_before": self.rmse_before,
+            "rmse_baseline_refit": float(rms_of(self.rounds[0].holdout_before)),
+            "rmse_after": self.rmse_after,
+            "refit_adopted": bool(not acc and self.refit is not None and self.refit.significant),
+            "noise_floor": self.noise_floor,
+            "holdout": list(self.holdout_names),
+        }
+
+
+def _offset_json(o: ImpliedOffset | None) -> dict | None:
+    """The constant torque the levels of the answer `none` imply (`implied_offset`)."""
+    if o is None:
+        return None
+    return {
+        "accel_rad_s2": o.value_rad_s2,
+        "ci95_rad_s2": o.ci95,
+        "right_side_rad_s2": o.right_rad_s2,
+        "right_ci95_rad_s2": o.right_ci95,
+        "left_side_rad_s2": o.left_rad_s2,
+        "left_ci95_rad_s2": o.left_ci95,
+        "consistent": o.consistent,
+        "meaning": "(Tc- - Tc+)/(2 J) of the model without an effect: a constant torque is "
+        "exactly this shift of the per-direction levels, plus the bearings' own asymmetry",
+    }
+
+
+def rms_of(parts) -> float:
+    x = np.concatenate([np.asarray(p) for p in parts]) if len(parts) else np.array([np.nan])
+    return float(np.sqrt(np.mean(x**2)))
