@@ -520,8 +520,10 @@ def _as_base(fit: CandidateFit, base: CandidateFit) -> CandidateFit:
 
 
 #: Effects on the command whose leader is refitted globally even when its
-#: joint restart was not kept (`_joint_stage`).
-COMMAND_EFFECTS = frozenset({"deadzone", "input_delay"})
+#: joint restart was not kept (`_joint_stage`). Saturation joined in stop 18
+#: (dev seeds saturation 1000-1005: right 4/6 -> 5/6, clean 1000-1005 still
+#: `none`; docs/diagnosis.md "Stop 18").
+COMMAND_EFFECTS = frozenset({"deadzone", "input_delay", "saturation"})
 
 #: Effect parameters whose cost is a staircase (no meaningful Jacobian interval).
 THRESHOLD_PARAMS = frozenset({"width_digits", "limit_digits", "delay_s"})
