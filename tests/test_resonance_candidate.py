@@ -103,6 +103,13 @@ def test_an_unknown_resonance_parameter_is_still_an_error():
         make_effect(EffectSpec("resonance", {**OLD, "fraction": 0.1}), DT)
     with pytest.raises(ParameterError, match="missing parameter 'coupling'"):
         make_batched("resonance", {"freq_hz": 40.0, "damping_ratio": 0.05}, DT)
+    for f in (1.0, -0.1, float("nan")):
+        with pytest.raises(ParameterError, match="payload_fraction must be in") as caught:
+            make_effect(EffectSpec("resonance", {**OLD, "payload_fraction": f}), DT)
+        assert "\n" not in str(caught.value)
+    batch = {k: np.full(3, v) for k, v in OLD.items()}
+    with pytest.raises(ParameterError, match="got 1.5"):
+        make_batched("resonance", {**batch, "payload_fraction": np.array([0.1, 1.5, 0.2])}, DT)
 
 
 @pytest.mark.parametrize("integration", [EQ6, Integration(10)])

@@ -19,6 +19,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from isp_twin.errors import ParameterError
 from isp_twin.model.effects.base import Effect
 
 
@@ -89,6 +90,23 @@ class Resonance(Effect):
     defaults: ClassVar[dict[str, float]] = {"payload_fraction": 0.0}
     substep_only: ClassVar[tuple[str, ...]] = ("payload_fraction",)
     in_substeps = True
+
+    @classmethod
+    def check_params(cls, params) -> None:
+        """`Effect.check_params`, and a payload fraction in [0, 1) (J2 < J).
+
+        Raises:
+            ParameterError: a missing or unknown parameter, or a fraction
+                outside [0, 1).
+        """
+        super().check_params(params)
+        if "payload_fraction" in params:
+            f = np.asarray(params["payload_fraction"], dtype=float)
+            if not np.all((f >= 0.0) & (f < 1.0)):
+                bad = f[~((f >= 0.0) & (f < 1.0))].ravel()[0] if f.ndim else float(f)
+                raise ParameterError(
+                    f"effect 'resonance': payload_fraction must be in [0, 1) (J2/J), got {bad:g}"
+                )
 
     def reset(self) -> None:
         self._phi, self._gamma = _discretize(
