@@ -8,9 +8,10 @@ is run with the truth's rate form and the truth's effect parameters
 run (train1, train2, held-out), beside the same without the effect. A model
 that holds the reference's physics reaches about 1 (the noise) with the truth
 held: this is what the library can reach at best, whatever the fit. For
-`resonance` a third figure per run: the two-mass form integrated in the
-sub-steps (`TwoMassResonance`, friction on the motor side; registered in this
-process only) with the truth's free mode and payload fraction.
+`resonance` the truth is the two-mass form (its payload fraction, integrated
+in the sub-steps: friction on the motor side) and the middle figure per run
+is the gyro-only form (the truth with ``payload_fraction`` 0, what the
+library's `resonance` was before docs/diagnosis.md "Stop 18 R").
 
     python benchmarks/truth_held.py --effects lugre,resonance --seeds 1000-1005
 """
@@ -24,9 +25,7 @@ import numpy as np
 from isp_twin.identification.cost import rmse
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
-from isp_twin.model.effects import EFFECTS, register
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
-from isp_twin.model.two_mass_payload import TwoMassResonance
 from isp_twin.reference import design_experiment
 from isp_twin.units import DEG
 
@@ -34,8 +33,8 @@ RUNS = ("train1", "train2", "heldout")
 
 
 def truth_held_row(seed: int, effect: str) -> dict[str, tuple[float, ...]]:
-    """Per run: (error without the effect, error with the true effect[, two-mass
-    form]) / noise sigma."""
+    """Per run: (error without the effect[, gyro-only form], error with the
+    true effect) / noise sigma."""
     exp = design_experiment(seed, effect)
     truth = exp.truth()
     sigma = truth["noise_sigma_deg_s"] * DEG
@@ -45,14 +44,8 @@ def truth_held_row(seed: int, effect: str) -> dict[str, tuple[float, ...]]:
     spec = EffectSpec(effect, truth["effects"][0]["params"])
     specs = [(spec,)]
     if effect == "resonance":
-        if TwoMassResonance.name not in EFFECTS:
-            register(TwoMassResonance)
-        p = truth["effects"][0]["params"]
-        fraction = truth["effects"][0]["physical"]["payload_fraction"]
-        two_mass = {"freq_hz": p["freq_hz"], "damping_ratio": p["damping_ratio"]}
-        specs.append(
-            (EffectSpec(TwoMassResonance.name, {**two_mass, "payload_fraction": fraction}),)
-        )
+        gyro_only = EffectSpec(effect, {**spec.params, "payload_fraction": 0.0})
+        specs.insert(0, (gyro_only,))
     timing = Timing(0.0, truth["sensors"]["gyro_averaged"])
     out = {}
     for name in RUNS:
@@ -76,7 +69,9 @@ def main() -> None:
     parser.add_argument("--effects", default="lugre,resonance")
     parser.add_argument("--seeds", default="1000-1005", help="e.g. 1000-1005 or 1000,1003")
     args = parser.parse_args()
-    print("| effect | seed | " + " | ".join(f"{n}: none / truth [/ two-mass]" for n in RUNS) + " |")
+    print(
+        "| effect | seed | " + " | ".join(f"{n}: none [/ gyro-only] / truth" for n in RUNS) + " |"
+    )
     print("|---|---|" + "---|" * len(RUNS))
     for effect in args.effects.split(","):
         for seed in _seeds(args.seeds):

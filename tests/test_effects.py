@@ -36,7 +36,12 @@ EXAMPLE = {
     "saturation": {"limit_digits": 1500.0},
     "sensor_bias": {"bias_rad_s": 0.01, "scale": 0.03},
     "lugre": {"accel_rad_s2": 12.0, "presliding_rad": 0.003},
-    "resonance": {"freq_hz": 40.0, "damping_ratio": 0.05, "coupling": 0.15},
+    "resonance": {
+        "freq_hz": 40.0,
+        "damping_ratio": 0.05,
+        "coupling": 0.15,
+        "payload_fraction": 0.1,
+    },
 }
 
 

@@ -1,7 +1,7 @@
 """The two-mass payload integrated in the sub-stepped model's sub-steps
-(`isp_twin.model.two_mass_payload`, `isp_twin.model.substep_model`): the free
-mode on a frictionless axis, the clamped mode on a stuck motor side, and
-reference axes with the true payload held."""
+(the library's `resonance` with a payload fraction, `isp_twin.model.substep_model`):
+the free mode on a frictionless axis, the clamped mode on a stuck motor side,
+and reference axes with the true payload held by the registered effect."""
 
 from __future__ import annotations
 
@@ -13,10 +13,9 @@ import pytest
 from isp_twin.identification.cost import rmse
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
-from isp_twin.model.effects import EFFECTS
+from isp_twin.model.effects.resonance import Resonance
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
 from isp_twin.model.substep_model import STATE_COLUMNS, _advance_rows, _substep_table
-from isp_twin.model.two_mass_payload import TwoMassResonance
 from isp_twin.reference import design_experiment
 from isp_twin.units import DEG
 
@@ -31,7 +30,7 @@ def _axis(pole, static) -> RateParams:
 
 def _ring(params: RateParams, mode: dict, y0: float, n: int):
     """The kernel from rest with the payload deflected by y0: motor rate and y per sample."""
-    effect = TwoMassResonance(mode, DT)
+    effect = Resonance({"coupling": 1.0, **mode}, DT)
     cols = effect.substep_columns(DT, M)
     sfx = np.array([[0.0, 1.0, *(float(cols[c]) for c in STATE_COLUMNS[2:])]])
     kstate = np.array([[0.0, y0, 0.0]])
@@ -81,28 +80,20 @@ def test_a_stuck_motor_side_lets_the_payload_ring_at_the_clamped_frequency():
 
 
 @pytest.mark.parametrize("seed", [1000, 1002])
-def test_the_true_two_mass_payload_of_reference_axes_is_within_the_issues_bound(monkeypatch, seed):
-    # Dev seeds of issue 8 (1000: 36 Hz, 1002); with `resonance`'s form the
+def test_the_true_two_mass_payload_of_reference_axes_is_within_the_issues_bound(seed):
+    # Dev seeds of issue 8 (1000: 36 Hz, 1002); with the gyro-only form (f = 0) the
     # truth left 2.7 / 10.8 and 1.06 / 4.19 noise floors (train1 / held-out).
     # The two-mass form holds the reference's physics up to its stop and
     # breakaway handling (no split of a sub-step at a stop with the payload),
     # so the bound is the issue's 1.5 noise floors for an effect, not 1.
-    monkeypatch.setitem(EFFECTS, TwoMassResonance.name, TwoMassResonance)
+    # The reference's truth is in the registered `resonance`'s parameters.
     exp = design_experiment(seed, "resonance")
     truth = exp.truth()
     sigma = truth["noise_sigma_deg_s"] * DEG
     regimes = truth["rate_form"]["regimes"]
     x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
-    p = truth["effects"][0]["params"]
-    fraction = truth["effects"][0]["physical"]["payload_fraction"]
-    spec = EffectSpec(
-        TwoMassResonance.name,
-        {
-            "freq_hz": p["freq_hz"],
-            "damping_ratio": p["damping_ratio"],
-            "payload_fraction": fraction,
-        },
-    )
+    spec = EffectSpec("resonance", truth["effects"][0]["params"])
+    assert spec.params["payload_fraction"] == truth["effects"][0]["physical"]["payload_fraction"]
     for name in ("train1", "heldout"):
         r = exp.runs[name]
         data = [MeasuredData(name, r.t, r.u, r.omega, r.theta, None, DT)]

@@ -62,6 +62,8 @@ class CandidateFit:
         bic: `isp_twin.estimation.information.bic` of the training fit.
         status: optimizer status.
         fixed: effects already in the model (not refitted).
+        held: effect parameters held at their start (the class's `frozen`,
+            and its `substep_only` ones at m = 1).
     """
 
     name: str
@@ -75,6 +77,7 @@ class CandidateFit:
     bic: float
     status: FitStatus
     fixed: tuple[EffectSpec, ...] = ()
+    held: tuple[str, ...] = ()
 
     @property
     def rmse(self) -> float:
@@ -163,7 +166,9 @@ def fit_candidates(
     need = [n for n in classes if starts.get(n) is None]
     if need:
         starts.update(_guessed_starts(stack, x_rate, classes, need, fixed, context))
-    layouts, problems, scales = _problems(names, classes, starts, x_rate, rate_starts, max_iter)
+    layouts, problems, scales = _problems(
+        names, classes, starts, x_rate, rate_starts, max_iter, stack.integration.substeps
+    )
 
     def evaluate(reqs):
         batch = []
@@ -214,8 +219,18 @@ def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> dict[str, d
     }
 
 
-def _problems(names, classes, starts, x_rate, rate_starts, max_iter):
-    """Each candidate's vector layout, Levenberg-Marquardt problem and bounds.
+def _held(cls, m: int) -> list[str]:
+    """Parameters of effect class `cls` held at their start with m sub-steps:
+    its `frozen` ones, and at m = 1 (Eq. 6 sees none of them) its `substep_only` ones."""
+    held = list(getattr(cls, "frozen", ()))
+    if m == 1:
+        held += [p for p in cls.substep_only if p not in held]
+    return held
+
+
+def _problems(names, classes, starts, x_rate, rate_starts, max_iter, m=2):
+    """Each candidate's vector layout, Levenberg-Marquardt problem and bounds;
+    at m = 1 (`_held`) a `substep_only` parameter is held at its default.
 
     Returns (layouts, problems, scales): layouts as (name, CandidateLayout,
     frozen effect parameters, effect start); scales as (lower, upper, scale).
@@ -226,9 +241,11 @@ def _problems(names, classes, starts, x_rate, rate_starts, max_iter):
             free, frozen, start = [], [], {}
         else:
             cls = classes[n]
-            frozen = list(getattr(cls, "frozen", ()))
+            frozen = _held(cls, m)
             free = [p for p in cls.param_names if p not in frozen]
-            start = dict(starts[n])
+            start = cls.completed(starts[n])
+            if m == 1:
+                start.update({p: cls.defaults.get(p, cls.null[p]) for p in cls.substep_only})
         lo_e = np.array([classes[n].bounds[p][0] for p in free]) if free else np.zeros(0)
         hi_e = np.array([classes[n].bounds[p][1] for p in free]) if free else np.zeros(0)
         x_e = np.array([start[p] for p in free]) if free else np.zeros(0)
@@ -263,15 +280,18 @@ def _named_result(layout, fit: FitResult, classes, stack: RunStack, fixed) -> Ca
     values.update({p: float(start[p]) for p in frozen})
     ci = {p: float(v) for p, v in vec.effect_values(ci95).items()}
     ci.update({p: float("nan") for p in frozen})
-    return _result(
-        n,
-        fit,
-        ci95,
-        {p: values[p] for p in cls.param_names},
-        {p: ci[p] for p in cls.param_names},
-        vec,
-        stack,
-        fixed,
+    return replace(
+        _result(
+            n,
+            fit,
+            ci95,
+            {p: values[p] for p in cls.param_names},
+            {p: ci[p] for p in cls.param_names},
+            vec,
+            stack,
+            fixed,
+        ),
+        held=tuple(frozen),
     )
 
 

@@ -534,7 +534,7 @@ def _determined(fit: CandidateFit) -> tuple[bool, str]:
     interval, and at least one strength parameter (null value 0) is farther
     from 0 than its 95 % half-width."""
     cls = effect_class(fit.name)
-    frozen = set(getattr(cls, "frozen", ()))
+    frozen = set(getattr(cls, "frozen", ())) | set(fit.held)
     # Thresholds (a dead-zone width, a saturation limit, a delay) change the
     # cost in steps: a finite-difference interval says nothing about them,
     # and their held-out gain is the evidence.

@@ -38,6 +38,8 @@ EFFECT_RANGES: dict[str, dict[str, tuple[float, float, bool]]] = {
     "saturation": {"limit_digits": (0.6, 0.85, False)},
     "sensor_bias": {"bias_rad_s": (0.005, 0.02, True), "scale": (0.01, 0.05, True)},
     "lugre": {"accel_rad_s2": (8.0, 20.0, False), "presliding_rad": (1e-3, 5e-3, False)},
+    # No payload_fraction: 0 (`Resonance.defaults`), gyro-only; the runs are
+    # Eq. 6's (`make_run`), which a payload fraction does not change.
     "resonance": {
         "freq_hz": (20.0, 120.0, False),
         "damping_ratio": (0.02, 0.08, False),

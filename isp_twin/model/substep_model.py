@@ -132,7 +132,8 @@ DEFAULT_INTEGRATION = Integration()
 #: a two-mass payload's J2/J1 [1], the spring's acceleration on the motor
 #: side per payload coordinate y [1/s^2] and per y' [1/s], and the mode's
 #: transition over a sub-step, free (Phi, Gamma) and with the motor side
-#: clamped (Phi) (`isp_twin.model.two_mass_payload.TwoMassResonance`).
+#: clamped (Phi), and the gyro's coupling c: it reads ``w + (r + c) y'``
+#: (`isp_twin.model.effects.resonance.Resonance`).
 STATE_COLUMNS: tuple[str, ...] = (
     "bristle_drive",
     "presliding_rad",
@@ -141,6 +142,7 @@ STATE_COLUMNS: tuple[str, ...] = (
     "spring_yd",
     *(f"free_{c}" for c in ("00", "01", "10", "11", "g0", "g1")),
     *(f"clamped_{c}" for c in ("00", "01", "10", "11")),
+    "gyro_coupling",
 )
 #: Defaults of the columns no effect gives (no bristle force).
 _COLUMN_DEFAULTS = {"bristle_drive": 0.0, "presliding_rad": 1.0}
@@ -228,11 +230,11 @@ def _advance_group(
     (m,) j/m; scratch: (8, >= rows) floats, idx: (>= rows,) ints (work space,
     allocated once per call of `_advance_rows`: per-sample calls are many);
     sfx: (S, 2) bristle drive [rate per sample] and pre-sliding distance
-    [rad] of LuGre integrated in the sub-steps, (S, 15) with a two-mass
+    [rad] of LuGre integrated in the sub-steps, (S, 16) with a two-mass
     payload (`STATE_COLUMNS`), or (., 0): none; kstate: (S, 3) the bristle
     deflection z [rad] and the payload's y [rad], y' [rad/s]. With a payload
     w is the motor side's rate (friction, stick, resolver) and the gyro
-    reads the payload's ``w + (1 + r) y'``.
+    reads the payload's ``w + (r + c) y'`` (c = 1: a gyro on the payload).
 
     The rows are the innermost loop: one sub-step of a row is a chain of
     dependent operations (two exp of the Stribeck curve), so the processor
@@ -253,7 +255,7 @@ def _advance_group(
     yp = scratch[8]  # payload coordinate and its rate
     ydp = scratch[9]
     bristles = sfx.shape[1] >= 2
-    payload = sfx.shape[1] >= 15
+    payload = sfx.shape[1] >= 16
     for b in range(nb):
         w[b] = w_state[r_lo + b]
         y[b] = y_state[r_lo + b]
@@ -268,7 +270,7 @@ def _advance_group(
             i = r_lo + b
             uk[b] = u[i, k - 1]
             ek[b] = extra[i, k - 1]
-            acc[b] = 0.5 * (w[b] + (1.0 + sfx[i, 2]) * ydp[b] if payload else w[b])
+            acc[b] = 0.5 * (w[b] + (sfx[i, 2] + sfx[i, 15]) * ydp[b] if payload else w[b])
             idx[b] = 0
             if use_side:
                 y0[b] = side_y[i, k - 1]
@@ -363,14 +365,14 @@ def _advance_group(
                 idx[b] = ix
                 y[b] = y[b] + h * wb
                 if payload:
-                    wb = wb + (1.0 + sfx[i, 2]) * ydp[b]  # the gyro on the payload
+                    wb = wb + (sfx[i, 2] + sfx[i, 15]) * ydp[b]  # the gyro on the payload
                 if j < m - 1:
                     acc[b] += wb
                 else:
                     acc[b] += 0.5 * wb
         for b in range(nb):
             i = r_lo + b
-            point[i, k] = w[b] + (1.0 + sfx[i, 2]) * ydp[b] if payload else w[b]
+            point[i, k] = w[b] + (sfx[i, 2] + sfx[i, 15]) * ydp[b] if payload else w[b]
             reading[i, k] = acc[b] / m
             angle[i, k] = y[b]
             regime[i, k] = idx[b]
@@ -658,7 +660,7 @@ def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt) ->
 
 
 def _substep_effects(effects, n_rows: int, dt: float, m: int):
-    """Reset the effects; the kernel's coefficients (rows, 2 or 15 of
+    """Reset the effects; the kernel's coefficients (rows, 2 or 16 of
     `STATE_COLUMNS`) and initial state (rows, 3) of those integrated in the
     sub-steps (`Effect.in_substeps`), or (1, 0) arrays when there is none,
     and the effects left to their hooks. At m = 1 there is none: Eq. 6 holds

@@ -228,11 +228,13 @@ class PayloadMode:
     ``y'' + (c/mu) y' + (k/mu) y = -w'`` with ``mu = J1 J2 / J``, and the gyro
     reads ``w2 = w + y'``: the project's `resonance` effect on a rigid axis of
     inertia J, with ``freq_hz = sqrt(k/mu) / 2 pi`` (the free two-mass mode),
-    ``damping_ratio = c / (2 sqrt(k mu))`` and ``coupling = 1`` (`truth`).
-    What the project's model does not hold: friction and stick act on the
+    ``damping_ratio = c / (2 sqrt(k mu))``, ``coupling = 1`` and
+    ``payload_fraction = J2/J`` (`truth`). Friction and stick act on the
     motor side's rate ``w1 = w - (J2/J1) y'``, not on w (a motor side held by
     stiction lets the payload ring at the clamped frequency sqrt(k/J2)), and
-    the resolver reads ``theta1 = theta - (J2/J1) y``.
+    the resolver reads ``theta1 = theta - (J2/J1) y``: the project's
+    `resonance` holds that only in its sub-stepped model (m > 1) and with
+    ``payload_fraction`` > 0 (docs/diagnosis.md, "Stop 18 R").
 
     Before issue 8's resonance work `truth` gave the clamped frequency
     sqrt(k/J2) and c / (2 sqrt(k J2)) (the payload equation in the motor
@@ -278,6 +280,7 @@ class PayloadMode:
             "freq_hz": self.free_freq_hz(inertia_kg_m2),
             "damping_ratio": self.damping_nm_s_rad / (2.0 * math.sqrt(self.stiffness_nm_rad * mu)),
             "coupling": 1.0,
+            "payload_fraction": self.payload_fraction,
         }
 
 

@@ -28,22 +28,36 @@ class Effect:
     #: `substep_columns` (LuGre's bristles); it then calls none of the hooks
     #: below (the twin, Eq. 6 and m = 1, `isp_twin.model.axis_model`, still do).
     in_substeps: ClassVar[bool] = False
+    #: Parameters a parameter set may leave out, with the value they then
+    #: take (a parameter added to an effect after files were written with it:
+    #: `resonance`'s ``payload_fraction``).
+    defaults: ClassVar[dict[str, float]] = {}
+    #: Parameters that act only inside the sub-steps (m > 1): Eq. 6 and m = 1
+    #: do not see them, so the diagnosis holds them at their start there
+    #: (`isp_twin.diagnosis.candidates`).
+    substep_only: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, params: Mapping[str, float], dt: float = 1e-3):
         self.check_params(params)
-        self.params = {k: float(params[k]) for k in self.param_names}
+        self.params = {k: float(v) for k, v in self.completed(params).items()}
         self.dt = dt
         self.reset()
 
     @classmethod
+    def completed(cls, params: Mapping[str, object]) -> dict[str, object]:
+        """`params` in `param_names` order, the left-out `defaults` filled in."""
+        return {k: params[k] if k in params else cls.defaults[k] for k in cls.param_names}
+
+    @classmethod
     def check_params(cls, params: Mapping[str, object]) -> None:
-        """Check that `params` names exactly `param_names`.
+        """Check that `params` names exactly `param_names` (those with
+        `defaults` may be left out).
 
         Raises:
             ParameterError: a missing or unknown parameter (the first one,
                 with the nearest name and the expected ones).
         """
-        missing = [p for p in cls.param_names if p not in params]
+        missing = [p for p in cls.param_names if p not in params and p not in cls.defaults]
         unknown = [p for p in params if p not in cls.param_names]
         if missing or unknown:
             bad = (missing or unknown)[0]

@@ -25,7 +25,7 @@ def make_batched(name: str, params: Mapping[str, np.ndarray], dt: float) -> Effe
     cls = effect_class(name)
     cls.check_params(params)
     effect = cls.__new__(cls)
-    effect.params = {k: np.asarray(params[k], dtype=float) for k in cls.param_names}
+    effect.params = {k: np.asarray(v, dtype=float) for k, v in cls.completed(params).items()}
     effect.dt = dt
     effect.reset()
     return effect

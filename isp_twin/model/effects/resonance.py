@@ -1,9 +1,16 @@
-"""A lightly damped structural mode between the motor and the gyro.
+"""A flexible payload: a lightly damped mode between the motor and the gyro.
 
-The gyro sits on the payload, which flexes against the driven axis: the
-payload deflection x obeys ``x'' + 2*zeta*wn*x' + wn^2*x = -coupling * a``
-(a = the axis's angular acceleration) and the gyro reads ``rate + x'``.
-The mode rings after every change of acceleration (breakaway, steps).
+The gyro sits on the payload, which flexes against the driven axis. In the
+axis's centre-of-mass rate w the payload coordinate y obeys
+``y'' + 2*zeta*wn*y' + wn^2*y = -w'`` and the gyro reads ``w + coupling*y'``;
+the mode rings after every change of acceleration (breakaway, steps). With
+``payload_fraction`` f = J2/J > 0 it is a two-mass system: friction, the
+stick test and the resolver act on the motor side's rate ``w - r*y'``
+(r = f/(1 - f)), and a motor side held by stiction lets the payload ring at
+the clamped frequency ``wn/sqrt(1 + r)``; coupling 1 is a gyro on the
+payload's inertia (the reference simulator's payload, docs/reference_simulator.md).
+f = 0 is the gyro-only mode of parameter files written before f existed
+(docs/diagnosis.md, "Stop 18 R").
 """
 
 from __future__ import annotations
@@ -12,6 +19,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from isp_twin.errors import ParameterError
 from isp_twin.model.effects.base import Effect
 
 
@@ -50,22 +58,55 @@ def _discretize(freq_hz, damping_ratio, coupling, dt):
 
 
 class Resonance(Effect):
-    """Gyro reading ``rate + x'`` of a payload mode excited by the axis acceleration.
+    """A payload mode read by the gyro, two-mass where ``payload_fraction`` > 0.
 
-    Parameters: ``freq_hz`` [Hz] (undamped natural frequency),
-    ``damping_ratio`` [1], ``coupling`` [1] (payload deflection per axis
-    deflection at low frequency).
+    Parameters: ``freq_hz`` [Hz] (undamped frequency of the free mode),
+    ``damping_ratio`` [1], ``coupling`` [1] (payload deflection rate the gyro
+    sees per y'; 1 for a gyro on the payload), ``payload_fraction`` [1]
+    (J2/J, 0 <= f < 1; 0 when a parameter file leaves it out).
+
+    The sub-stepped model (m > 1) integrates the mode in its sub-steps
+    (`in_substeps`, `substep_columns`, `isp_twin.model.substep_model`);
+    Eq. 6, m = 1 and the twin use the hooks, which hold the gyro-only form
+    (friction on w): there the payload fraction has no effect
+    (`substep_only`).
     """
 
     name = "resonance"
-    param_names = ("freq_hz", "damping_ratio", "coupling")
+    param_names = ("freq_hz", "damping_ratio", "coupling", "payload_fraction")
     #: Parameters that make the effect do nothing.
-    null: ClassVar[dict[str, float]] = {"freq_hz": 100.0, "damping_ratio": 0.1, "coupling": 0.0}
+    null: ClassVar[dict[str, float]] = {
+        "freq_hz": 100.0,
+        "damping_ratio": 0.1,
+        "coupling": 0.0,
+        "payload_fraction": 0.0,
+    }
     bounds: ClassVar[dict[str, tuple[float, float]]] = {
         "freq_hz": (1.0, 400.0),
         "damping_ratio": (0.002, 0.5),
         "coupling": (-2.0, 2.0),
+        "payload_fraction": (0.0, 0.9),
     }
+    defaults: ClassVar[dict[str, float]] = {"payload_fraction": 0.0}
+    substep_only: ClassVar[tuple[str, ...]] = ("payload_fraction",)
+    in_substeps = True
+
+    @classmethod
+    def check_params(cls, params) -> None:
+        """`Effect.check_params`, and a payload fraction in [0, 1) (J2 < J).
+
+        Raises:
+            ParameterError: a missing or unknown parameter, or a fraction
+                outside [0, 1).
+        """
+        super().check_params(params)
+        if "payload_fraction" in params:
+            f = np.asarray(params["payload_fraction"], dtype=float)
+            if not np.all((f >= 0.0) & (f < 1.0)):
+                bad = f[~((f >= 0.0) & (f < 1.0))].ravel()[0] if f.ndim else float(f)
+                raise ParameterError(
+                    f"effect 'resonance': payload_fraction must be in [0, 1) (J2/J), got {bad:g}"
+                )
 
     def reset(self) -> None:
         self._phi, self._gamma = _discretize(
@@ -82,29 +123,69 @@ class Resonance(Effect):
         self._state = np.einsum("...ij,...j->...i", self._phi, s) + self._gamma * accel[..., None]
         return rate + self._state[..., 1]
 
+    def substep_columns(self, dt: float, m: int) -> dict[str, object]:
+        """J2/J1, the gyro's coupling, the spring's pull on the motor side and
+        the mode's sub-step transitions, free and clamped
+        (`isp_twin.model.substep_model.STATE_COLUMNS`)."""
+        f = np.asarray(self.params["payload_fraction"], dtype=float)
+        r = f / (1.0 - f)
+        zeta = np.asarray(self.params["damping_ratio"], dtype=float)
+        wn = 2.0 * np.pi * np.asarray(self.params["freq_hz"], dtype=float)
+        phi, gamma = _discretize(self.params["freq_hz"], zeta, 1.0, dt / m)
+        # Motor side clamped: (1 + r) y'' + 2 zeta wn y' + wn^2 y = 0.
+        stretch = np.sqrt(1.0 + r)
+        clamped, _ = _discretize(self.params["freq_hz"] / stretch, zeta / stretch, 0.0, dt / m)
+        cols = {
+            "payload_ratio": r,
+            # Spring and damper torque on the motor side / J, per y and per y'.
+            "spring_y": r / (1.0 + r) * wn * wn,
+            "spring_yd": r / (1.0 + r) * 2.0 * zeta * wn,
+            "free_g0": gamma[..., 0],
+            "free_g1": gamma[..., 1],
+            "gyro_coupling": np.asarray(self.params["coupling"], dtype=float),
+        }
+        for a, b in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            cols[f"free_{a}{b}"] = phi[..., a, b]
+            cols[f"clamped_{a}{b}"] = clamped[..., a, b]
+        return cols
+
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
-        """The two largest peaks of the residual's spectrum above 5 Hz, with a
-        grid of damping ratios and couplings."""
+        """The two largest peaks of the residual's spectrum above 5 Hz (the
+        frequency is searched on them, not by the local fit), each with a
+        grid of damping ratios and of gyro-only couplings (f = 0) and
+        two-mass payloads (coupling 1, f = 0.08 and 0.2; the peak taken as
+        the free and as the clamped frequency, ``free = clamped*sqrt(1 + r)``)."""
+        peaks = cls._peaks(ctx)
+        if not peaks:
+            peaks = [50.0]
+        forms = [(c, 0.0, 1.0) for c in (-0.3, -0.05, 0.05, 0.3)]
+        for f in (0.08, 0.2):
+            stretch = float(np.sqrt(1.0 / (1.0 - f)))  # sqrt(1 + r)
+            forms += [(1.0, f, 1.0), (1.0, f, stretch)]
+        return [
+            {"freq_hz": p * k, "damping_ratio": z, "coupling": c, "payload_fraction": f}
+            for p in peaks
+            for z in (0.02, 0.08)
+            for c, f, k in forms
+        ]
+
+    @classmethod
+    def _peaks(cls, ctx) -> list[float]:
         r = ctx.residual - ctx.residual.mean()
         spec = np.abs(np.fft.rfft(r * np.hanning(r.size)))
         freqs = np.fft.rfftfreq(r.size, ctx.dt)
         lo, hi = max(5.0, cls.bounds["freq_hz"][0]), min(cls.bounds["freq_hz"][1], 0.45 / ctx.dt)
         band = np.flatnonzero((freqs >= lo) & (freqs <= hi))
         if band.size == 0:
-            return [{"freq_hz": 50.0, "damping_ratio": 0.05, "coupling": 0.1}]
+            return []
         # Smooth over 1 Hz so a single noise bin does not win.
         width = max(1, round(1.0 / (freqs[1] - freqs[0])))
         smooth = np.convolve(spec, np.ones(width) / width, mode="same")
-        peaks = []
+        peaks: list[float] = []
         for i in band[np.argsort(smooth[band])[::-1]]:
             if all(abs(freqs[i] - f) > 3.0 for f in peaks):
                 peaks.append(float(freqs[i]))
             if len(peaks) == 2:
                 break
-        return [
-            {"freq_hz": f, "damping_ratio": z, "coupling": c}
-            for f in peaks
-            for z in (0.02, 0.08)
-            for c in (-0.3, -0.05, 0.05, 0.3)
-        ]
+        return peaks
