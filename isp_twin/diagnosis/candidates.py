@@ -228,7 +228,7 @@ def _held(cls, m: int) -> list[str]:
     return held
 
 
-def _problems(names, classes, starts, x_rate, rate_starts, max_iter, m=2):
+def _problems(names, classes, starts, x_rate, rate_starts, max_iter, m):
     """Each candidate's vector layout, Levenberg-Marquardt problem and bounds;
     at m = 1 (`_held`) a `substep_only` parameter is held at its default.
 

@@ -17,7 +17,7 @@ overhead, not the batch size, sets the price.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -131,13 +131,13 @@ def stack_runs(
         DataError: no runs, or runs with different sample periods.
     """
     if not runs:
-        raise DataError("diagnosis: no data sets given")
+        raise DataError("no data sets given")
     dt = float(runs[0].dt)
     for r in runs:
         if abs(float(r.dt) - dt) > SAMPLE_PERIOD_TOLERANCE * dt:
             raise DataError(
                 f"{r.name}: sample period {r.dt} s differs from {runs[0].name}'s {dt} s; "
-                "all data sets of one diagnosis need the same period"
+                "all data sets of one fit need the same period"
             )
     n = max(len(r.u) for r in runs)
     shape = (len(runs), n)
@@ -150,18 +150,14 @@ def stack_runs(
         angle[i, :m] = r.angle
         angle[i, m:] = r.angle[-1]
         mask[i, min(max(warmup, 1), m - 1) : m] = True
-    # The first measured rate is the initial state; a reading within the rest
-    # level is rest (the stiction branch of Eq. 5), not a slow motion in the
-    # direction of the noise.
-    for i, r in enumerate(runs):
-        w = np.asarray(r.omega, float)
-        if rest is not None:
-            if abs(w[0]) <= rest:
-                omega[i, 0] = 0.0
-        elif w.size > 8:
-            sigma = noise_floor_of([w[:2000]])
-            if abs(w[0]) <= 3.0 * sigma:
-                omega[i, 0] = 0.0
+        # The first measured rate is the initial state; a reading within the
+        # rest level is rest (the stiction branch of Eq. 5), not a slow
+        # motion in the direction of the noise.
+        level = rest
+        if level is None:
+            level = 3.0 * noise_floor_of([np.asarray(r.omega[:2000], float)]) if m > 8 else -1.0
+        if abs(r.omega[0]) <= level:
+            omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
     return RunStack(names, u, omega, angle, mask, dt, side, gyro_average, integration)
 
@@ -211,14 +207,7 @@ def predict(
         integration=stack.integration,
         gyro_average=stack.gyro_average,
     )
-    resp = _diverged_held(resp)
-    shape = (p, r, n)
-    return type(resp)(
-        resp.omega.reshape(shape),
-        resp.angle.reshape(shape),
-        resp.regime.reshape(shape),
-        None if resp.omega_true is None else resp.omega_true.reshape(shape),
-    )
+    return _diverged_held(resp).mapped(lambda a: a.reshape(p, r, n))
 
 
 def _diverged_held(resp):
@@ -230,19 +219,13 @@ def _diverged_held(resp):
     if np.all(np.abs(resp.omega) <= DIVERGED):  # False on NaN too
         return resp
     held = np.clip(np.nan_to_num(resp.omega, nan=DIVERGED), -DIVERGED, DIVERGED)
-    return type(resp)(held, resp.angle, resp.regime, resp.omega_true)
+    return replace(resp, omega=held)
 
 
 def predict_one(stack: RunStack, rate_vector: np.ndarray, fixed: Sequence[EffectSpec] = ()):
     """`predict` for one rate vector (`RATE_LAYOUT.size`,) with `fixed`
     effects: an `AxisResponse` of arrays (R, N)."""
-    resp = predict(stack, np.asarray(rate_vector)[None], (), fixed)
-    return type(resp)(
-        *(
-            None if a is None else a[0]
-            for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
-        )
-    )
+    return predict(stack, np.asarray(rate_vector)[None], (), fixed).mapped(lambda a: a[0])
 
 
 def residuals(stack: RunStack, rate_vectors, effects=(), fixed=()) -> np.ndarray:

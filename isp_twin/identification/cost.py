@@ -68,13 +68,7 @@ def simulate_data(
     each sample period reads (`Timing`).
     """
     stack = run_stack([d], side_source, rest_rate_deg_s, timing, integration)
-    resp = predict_one(stack, rate.to_vector(), tuple(effects))
-    return type(resp)(
-        *(
-            None if a is None else a[0]
-            for a in (resp.omega, resp.angle, resp.regime, resp.omega_true)
-        )
-    )
+    return predict_one(stack, rate.to_vector(), tuple(effects)).mapped(lambda a: a[0])
 
 
 def residuals(

@@ -337,7 +337,7 @@ class _Search:
     ) -> None:
         self.data, self.free, self.s, self.effects, self.progress = data, free, s, effects, progress
         self.timing = Timing()
-        self.stacked: tuple[Timing, RunStack] | None = None
+        self._stacked: tuple[Timing, RunStack] | None = None
         self.evaluations = 0
         self.initial_cost = float(self.batch_cost(free.x0[:, None])[0])
         self.history: list[float] = [self.initial_cost]
@@ -359,13 +359,13 @@ class _Search:
         (stacked once per read-out timing) and this search's side source, rest
         level, effects, timing and integration."""
         s = self.s
-        if self.stacked is None or self.stacked[0] != self.timing:
+        if self._stacked is None or self._stacked[0] != self.timing:
             stack = run_stack(
                 self.data, s.side_source, s.rest_rate_deg_s, self.timing, s.integration
             )
-            self.stacked = (self.timing, stack)
+            self._stacked = (self.timing, stack)
         return (
-            self.stacked[1],
+            self._stacked[1],
             s.side_source,
             s.rest_rate_deg_s,
             self.effects,

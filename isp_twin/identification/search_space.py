@@ -81,7 +81,7 @@ def z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, n
     a factor 1e3 of the start; the levels between 1e-4 and 3 times the peak
     drive (b·Ke times the largest command: a level below 1e-4 of it changes
     no response, and a floor keeps the log-variables from sliding to -inf,
-    where their gradient vanishes); alpha*|omega|rms_of between 1e-3 and 1e4.
+    where their gradient vanishes); alpha*|omega|_rms between 1e-3 and 1e4.
     """
     r = np.asarray(x0, float).reshape(-1, RATE_LAYOUT.n_fields)
     drive = r[:, 1] * u_peak

@@ -30,7 +30,7 @@ Discrete stick-slip, the decisions Eq. 6 leaves open:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +64,11 @@ class AxisResponse:
     angle: np.ndarray
     regime: np.ndarray
     omega_true: np.ndarray | None = None
+
+    def mapped(self, f: Callable[[np.ndarray], np.ndarray]) -> AxisResponse:
+        """The response with ``f`` applied to each array (a reshape, a row)."""
+        arrays = (self.omega, self.angle, self.regime, self.omega_true)
+        return AxisResponse(*(None if a is None else f(a) for a in arrays))
 
 
 def simulate(

@@ -440,7 +440,7 @@ def load_parameters(path: str | Path) -> ParameterSet:
     )
 
 
-def diagnosis_round(x: float) -> float:
+def _round(x: float) -> float:
     return float(f"{x:.6g}")
 
 
@@ -454,15 +454,15 @@ def parameters_to_dict(params: ParameterSet) -> dict:
         for r, reg, ci in zip(REGIMES, axis.regimes, axis.ci95):
             entry = {}
             for f in PAPER_FIELDS:
-                v = diagnosis_round(getattr(reg, f))
+                v = _round(getattr(reg, f))
                 c = getattr(ci, f) if ci is not None else math.nan
-                entry[f] = {"value": v, "ci95": diagnosis_round(c)} if math.isfinite(c) else v
+                entry[f] = {"value": v, "ci95": _round(c)} if math.isfinite(c) else v
             out[r] = entry
         if not all(axis.identified):
             out["identified"] = dict(zip(REGIMES, axis.identified))
         if axis.effects:
             out["effects"] = [
-                {"name": e.name, "params": {k: diagnosis_round(v) for k, v in e.params.items()}}
+                {"name": e.name, "params": {k: _round(v) for k, v in e.params.items()}}
                 for e in axis.effects
             ]
         if axis.fitted_with is not None:

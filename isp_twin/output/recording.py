@@ -189,8 +189,8 @@ def _log_residual_metadata(
     facts = {
         "name": name,
         "samples": len(before),
-        "rms_before_deg_s": rms_of(before),
-        "rms_after_deg_s": rms_of(after),
+        "rms_before_deg_s": _rms(before),
+        "rms_after_deg_s": _rms(after),
         "isp_twin": isp_twin.__version__,
         "rerun_sdk": rr.__version__,
     }
@@ -356,7 +356,7 @@ def _log_metadata_run(stream: rr.RecordingStream, result: RunResult, n: int) -> 
     _log_text(stream, "/metadata/metrics", text)
 
 
-def rms_of(x: np.ndarray) -> float:
+def _rms(x: np.ndarray) -> float:
     finite = x[np.isfinite(x)]
     return float(np.sqrt(np.mean(finite**2))) if finite.size else float("nan")
 

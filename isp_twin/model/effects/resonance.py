@@ -102,8 +102,9 @@ class Resonance(Effect):
         super().check_params(params)
         if "payload_fraction" in params:
             f = np.asarray(params["payload_fraction"], dtype=float)
-            if not np.all((f >= 0.0) & (f < 1.0)):
-                bad = f[~((f >= 0.0) & (f < 1.0))].ravel()[0] if f.ndim else float(f)
+            ok = (f >= 0.0) & (f < 1.0)
+            if not np.all(ok):
+                bad = float(f[~ok].flat[0]) if f.ndim else float(f)
                 raise ParameterError(
                     f"effect 'resonance': payload_fraction must be in [0, 1) (J2/J), got {bad:g}"
                 )
