@@ -25,6 +25,7 @@ from isp_twin.model.parameters import (
     save_parameters,
 )
 from isp_twin.model.substep_model import EQ6, Integration, simulate_substeps
+from isp_twin.reference import design_experiment
 from isp_twin.resources import default_parameters_path
 
 DT = 1e-3
@@ -130,3 +131,35 @@ def test_the_fit_holds_the_payload_fraction_only_where_the_model_cannot_see_it(p
         assert fit.held == ()
         assert np.isfinite(fit.ci95["payload_fraction"])
     assert fit.rate_vector.shape == (RATE_LAYOUT.size,)
+
+
+def test_a_null_resonance_row_is_a_rigid_row_bit_for_bit():
+    """The diagnosis simulates every candidate in one batch, each row with
+    the other candidates' effects at their null parameters: a resonance row
+    with coupling 0 and no payload must then be the rigid axis exactly,
+    through stops and breakaways (split reversals) too. It was not: a stop
+    ended the sub-step on every row of a batch holding a resonance, which
+    moved the other candidates' fits (two false positives on clean
+    benchmark axes, docs/diagnosis.md "Stop 18"). A clean reference axis's
+    run and true rate form (dev seed 1000)."""
+    exp = design_experiment(1000)
+    truth = exp.truth()
+    regimes = truth["rate_form"]["regimes"]
+    rate = RateParams.from_vector(
+        np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
+    )
+    u = exp.runs["train1"].u
+    integration = Integration(10)
+    rigid = simulate_substeps(rate, u, DT, integration=integration, gyro_average=True)
+    spec = EffectSpec("resonance", {**OLD, "coupling": 0.0})
+    null = {k: np.array([v]) for k, v in make_effect(spec, DT).params.items()}
+    with_null = simulate_substeps(
+        _rate_rows(rate, 1),
+        u[None],
+        DT,
+        effects=[make_batched("resonance", null, DT)],
+        integration=integration,
+        gyro_average=True,
+    )
+    assert np.any(rigid.omega == 0.0) and np.any(rigid.omega != 0.0)  # it stops and moves
+    np.testing.assert_array_equal(with_null.omega[0], rigid.omega)

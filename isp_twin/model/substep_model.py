@@ -311,7 +311,11 @@ def _advance_group(
                             w_new, yn, ydn = _payload_motion(sfx[i], yp[b], ydp[b], wb, w_new, h)
                     if w_new * wb <= 0.0:
                         rest_part = 0.0
-                        if split and w_new != 0.0 and not payload:
+                        # A payload on the motor side (r > 0) ends the
+                        # sub-step at the stop; without one (r = 0: a gyro-only
+                        # mode, or the null rows of other candidates in one
+                        # batch) the stop is split as on a rigid axis.
+                        if split and w_new != 0.0 and not (payload and sfx[i, 2] != 0.0):
                             rest_part = 1.0 - wb / (wb - w_new)
                         if bristles:  # travel to the stop: the rate falls linearly
                             part = wb / (wb - w_new) if w_new != 0.0 else 1.0
