@@ -34,15 +34,18 @@ RUNS = ("train1", "train2", "heldout")
 
 def truth_held_row(seed: int, effect: str) -> dict[str, tuple[float, ...]]:
     """Per run: (error without the effect[, gyro-only form], error with the
-    true effect) / noise sigma."""
+    true effect) / noise sigma; on a clean axis (`effect` none) only the first."""
     exp = design_experiment(seed, effect)
     truth = exp.truth()
     sigma = truth["noise_sigma_deg_s"] * DEG
     regimes = truth["rate_form"]["regimes"]
     x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
     rate = RateParams.from_vector(x)
-    spec = EffectSpec(effect, truth["effects"][0]["params"])
-    specs = [(spec,)]
+    if not truth["effects"]:
+        specs = []
+    else:
+        spec = EffectSpec(effect, truth["effects"][0]["params"])
+        specs = [(spec,)]
     if effect == "resonance":
         gyro_only = EffectSpec(effect, {**spec.params, "payload_fraction": 0.0})
         specs.insert(0, (gyro_only,))

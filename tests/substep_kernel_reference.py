@@ -1,11 +1,21 @@
 """The sub-step kernel as it was before its rows were interleaved and run in
 parallel (`isp_twin.model.substep_model` at commit 9cc08c3): one row after the other,
 the obvious loop. `tests/test_substep_model.py` checks the fast kernel against
-it bit for bit. Not cached: compiled once per test session."""
+it bit for bit. Not cached: compiled once per test session. The side of
+angle 0 follows the direction (`isp_twin.model.friction.side_of`, the
+boundary rule added after 9cc08c3)."""
 
 from numba import njit
 
 from isp_twin.model import friction_compiled as law
+
+
+@njit(nogil=True)
+def _regime(angle, direction, fixed_side):
+    """The regime of a motion in `direction` at `angle`, or on `fixed_side`
+    (the side of angle 0 by the direction: the law since the boundary rule)."""
+    side = fixed_side if fixed_side >= 0 else law.side_of(angle, direction)
+    return law.regime_of(side, direction)
 
 
 @njit(nogil=True)
@@ -48,19 +58,16 @@ def advance_row_by_row(
             acc = 0.5 * w
             idx = 0
             for j in range(m):
-                if fixed_side >= 0:
-                    side = fixed_side
-                elif use_side:
+                if use_side:
                     y0 = side_y[i, k - 1]
                     if j == 0:
                         ys = y0
                     else:
                         ys = y0 + (j / m) * (side_y[i, k] - y0)
-                    side = law.side_of(ys)
                 else:
-                    side = law.side_of(y)
+                    ys = y
                 if w != 0.0:
-                    idx = law.regime_of(side, w)
+                    idx = _regime(ys, w, fixed_side)
                     p = table[i, idx, 0]
                     drive = table[i, idx, 1] * uk + table[i, idx, 5] * ek
                     ts = table[i, idx, 2]
@@ -79,9 +86,9 @@ def advance_row_by_row(
                         w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
-                            r0 = law.regime_of(side, uk)
+                            r0 = _regime(ys, uk, fixed_side)
                             d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
-                            idx = law.regime_of(side, d)
+                            idx = _regime(ys, d, fixed_side)
                             ts2 = table[i, idx, 2]
                             if abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
@@ -89,9 +96,9 @@ def advance_row_by_row(
                 else:
                     # At rest the command's sign picks the gain and the total
                     # drive's sign the breakaway level (as `axis_model.simulate`).
-                    r0 = law.regime_of(side, uk)
+                    r0 = _regime(ys, uk, fixed_side)
                     d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
-                    idx = law.regime_of(side, d)
+                    idx = _regime(ys, d, fixed_side)
                     ts = table[i, idx, 2]
                     if abs(d) > ts:
                         w = d - law.stiction(d, ts)

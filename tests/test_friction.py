@@ -33,12 +33,14 @@ ALPHA = np.array([0.427, 0.263, 0.774, 0.166])
         (1.0, -1.0, "R-"),
         (-1.0, 1.0, "L+"),
         (-1.0, -1.0, "L-"),
-        (0.0, 1.0, "L+"),
+        (0.0, 1.0, "R+"),
         (0.0, -1.0, "L-"),
+        (0.0, 0.0, "L+"),
     ],
 )
 def test_regime_follows_side_and_direction(angle, direction, expected):
-    # Eq. 5: Y <= 0 is the left half-plane, so the angle 0 belongs to L.
+    # Eq. 5: Y < 0 is L, Y > 0 is R. At Y = 0 (Eq. 5 puts it in L) a motion
+    # enters the side of its direction: a positive one is at once in Y > 0.
     assert REGIMES[int(regime_index(angle, direction))] == expected
 
 
@@ -99,7 +101,7 @@ def test_batched_parameters_broadcast():
 # One law, two forms: the per-step callers (twin, NFC, compiled loop) use the
 # scalar functions, the batched ones (axis model, identification) the arrays.
 
-ANGLES = (0.35, 1e-9, 0.0, -1e-9, -0.35)  # R, R, L (angle 0 is L), L, L
+ANGLES = (0.35, 1e-9, 0.0, -1e-9, -0.35)  # R, R, the boundary (by direction), L, L
 RATES = (2.1, 0.04, 1e-12, 0.0, -1e-12, -0.04, -2.1)
 DRIVES = (9.0, 5.0, 1.0, 0.0, -1.0, -5.0, -9.0)
 
@@ -111,7 +113,7 @@ def test_scalar_and_array_forms_agree_on_every_regime(alpha):
     torque, regime = friction_torque(rate, drive, angle, TS, TC, alpha)
     assert set(regime.tolist()) == {0, 1, 2, 3}
     for k, (a, w, d) in enumerate(grid):
-        side = side_of(a)
+        side = side_of(a, w if w != 0.0 else d)
         r = regime_of(side, w if w != 0.0 else d)
         expected = sliding(w, TS[r], TC[r], alpha[r]) if w != 0.0 else stiction(d, TS[r])
         assert r == regime[k]
@@ -126,7 +128,9 @@ def test_scalar_and_array_forms_agree_on_every_regime(alpha):
 
 
 def test_scalar_side_and_regime_follow_fig3():
-    assert [side_of(a) for a in (1.0, 0.0, -1.0)] == [SIDE_R, SIDE_L, SIDE_L]
+    assert [side_of(a, 1.0) for a in (1.0, 0.0, -1.0)] == [SIDE_R, SIDE_R, SIDE_L]
+    assert [side_of(a, -1.0) for a in (1.0, 0.0, -1.0)] == [SIDE_R, SIDE_L, SIDE_L]
+    assert [side_of(a, 0.0) for a in (1.0, 0.0, -1.0)] == [SIDE_R, SIDE_L, SIDE_L]
     names = [REGIMES[regime_of(s, d)] for s in (SIDE_R, SIDE_L) for d in (1.0, 0.0, -1.0)]
     assert names == ["R+", "R+", "R-", "L+", "L+", "L-"]
 

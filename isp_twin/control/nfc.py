@@ -68,11 +68,10 @@ class FrictionFeedForward:
 
     def friction_digits(self, omega2: float, u_pi: float, angle: float) -> float:
         """Eq. 11: the model friction as an amplifier command u_c1 [digits]."""
-        side = side_of(angle)
         if abs(omega2) > self.rest_rate:
-            r = regime_of(side, omega2)
+            r = regime_of(side_of(angle, omega2), omega2)
             return sliding(omega2, self.static_digits[r], self.coulomb_digits[r], self.alpha[r])
-        return stiction(u_pi, self.static_digits[regime_of(side, u_pi)])
+        return stiction(u_pi, self.static_digits[regime_of(side_of(angle, u_pi), u_pi)])
 
     def step(self, omega2: float, u_pi: float, angle: float) -> float:
         """One sample of Eq. 14: the compensation u_c3 [digits].

@@ -342,7 +342,7 @@ if _LIB is not None:
             if not -max_rate < w < max_rate:
                 err[0], err[1] = s, w
                 return TWIN_RATE
-            side = law.side_of(qpos[lo + s])
+            side = law.side_of(qpos[lo + s], w)
             if w > rest_rate or w < -rest_rate:
                 r = law.regime_of(side, w)
                 frictionloss[lo + s] = law.stribeck(
@@ -488,12 +488,12 @@ if _LIB is not None:
                 # FrictionFeedForward.step(omega2, u_pi, angle)
                 if p[I_NFC] != 0.0:
                     om, ang = meas_r[i], meas_q[i]
-                    side = law.side_of(ang)
                     if abs(om) > p[I_REST]:
-                        r = law.regime_of(side, om)
+                        r = law.regime_of(law.side_of(ang, om), om)
                         u1 = law.sliding(om, p[I_TS + r], p[I_TC + r], p[I_ALPHA + r])
                     else:
-                        u1 = law.stiction(u_pi, p[I_TS + law.regime_of(side, u_pi)])
+                        r = law.regime_of(law.side_of(ang, u_pi), u_pi)
+                        u1 = law.stiction(u_pi, p[I_TS + r])
                     taps = cint[N_TAPS0 + i]
                     hist[i, sint[K_NFC_POS0 + i]] = u1
                     sint[K_NFC_POS0 + i] = (sint[K_NFC_POS0 + i] + 1) % taps

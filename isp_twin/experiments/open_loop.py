@@ -211,7 +211,8 @@ def analyse_open_loop(
     for start, stop in _runs(np.abs(omega) <= REST_RATE, int(round(MERGE_GAP_S / dt))):
         if start == 0 or stop == len(t):
             continue
-        zones[SIDES[side_of(angle[start])]].append(float((stop - start) * dt * 1e3))
+        # The paper's Fig. 2 split (Y <= 0 is L): no direction at a stop.
+        zones[SIDES[side_of(angle[start], 0.0)]].append(float((stop - start) * dt * 1e3))
     return OpenLoopFigures(
         peak_deg_s=peaks,
         peak_positive_deg_s=float(w_deg.max()),

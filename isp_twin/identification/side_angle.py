@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from isp_twin.errors import ParameterError
+from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.friction import regime_index
 from isp_twin.model.parameters import RATE_LAYOUT
@@ -19,6 +20,7 @@ __all__ = [
     "FUSION_WINDOW",
     "fused_angle",
     "side_angle",
+    "at_boundary",
     "regime_visits",
 ]
 
@@ -27,6 +29,8 @@ __all__ = [
 SIDE_SOURCES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
 #: Window of the angle/rate fusion [samples] (`fused_angle`).
 FUSION_WINDOW = 201
+#: Readings of exactly 0 in a row that make a stop on the boundary (`at_boundary`).
+BOUNDARY_READINGS = 10
 
 
 def fused_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
@@ -45,6 +49,34 @@ def fused_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
     return integral + smooth
 
 
+def at_boundary(data: MeasuredData, fused: np.ndarray, window: int = FUSION_WINDOW) -> np.ndarray:
+    """Samples of an axis at rest on the boundary between the half-planes,
+    bool shape (N,).
+
+    There the resolver reads exactly 0 for at least `BOUNDARY_READINGS`
+    samples in a row and the fused angle is within four standard deviations
+    of its own noise (the integrated gyro noise less its moving average,
+    ``sigma dt sqrt(window / 12)``): its sign is only that noise. The side
+    angle is 0 there and the direction of the motion picks the side
+    (`isp_twin.model.friction.side_of`), as on the real axis. A crossing,
+    even a slow one, keeps its fused angle: its sign times the crossing to a
+    fraction of a sample, and a side one sample early costs a transient of
+    the size of the friction change.
+    """
+    zero = data.angle == 0.0
+    if not zero.any():
+        return zero
+    # Length of the run of zero readings each sample belongs to.
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], zero.astype(np.int8), [0]))))
+    long_run = np.zeros_like(zero)
+    for lo, hi in zip(edges[::2], edges[1::2]):
+        if hi - lo >= BOUNDARY_READINGS:
+            long_run[lo:hi] = True
+    sigma = noise_floor_of([data.omega])
+    band = 4.0 * sigma * data.dt * np.sqrt(max(1, min(window, fused.size)) / 12.0)
+    return long_run & (np.abs(fused) <= band)
+
+
 def side_angle(data: MeasuredData, side_source: str = "measured", shift: float = 0.0) -> np.ndarray:
     """The angle [rad] whose sign selects the half-plane of each step (see module doc).
 
@@ -59,9 +91,13 @@ def side_angle(data: MeasuredData, side_source: str = "measured", shift: float =
     choice makes every crossing half a sample early or late, an error of the
     size of the friction change that then decays with the pole (20-30 noise
     sigmas on a 10 ms axis). `identify` picks the shift from the data.
+
+    The fused angle is set to 0 `at_boundary` (an axis at rest where the
+    resolver reads 0: there the direction of the motion picks the side).
     """
     if side_source == "measured":
         y = fused_angle(data)
+        y[at_boundary(data, y)] = 0.0
         if shift == 0.0:
             return y
         k = np.arange(y.size, dtype=float)

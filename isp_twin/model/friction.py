@@ -6,9 +6,16 @@ have to be consistent (the twin passes N·m, rad/s, s/rad; the axis model passes
 the rate form of Eq. 6, i.e. torques already multiplied by b).
 
 Regimes follow the paper's Fig. 3: the side of the angle (R: angle > 0,
-L: angle <= 0) times the direction of motion (+/-). The direction is the sign
+L: angle < 0) times the direction of motion (+/-). The direction is the sign
 of the rate while moving and, at rest, the sign of the drive torque (the
-stiction branch of Eq. 5). `Ts` and `Tc` are magnitudes for both directions:
+stiction branch of Eq. 5). At the boundary, an angle of exactly 0 (an axis
+at rest there, a resolver reading 0), the side is the one the motion enters:
+R for a positive direction, L otherwise. Eq. 5 puts Y = 0 in L, but in
+continuous time a positive motion from Y = 0 is at once in Y > 0, where the
+R+ law holds: a drive between T_sL^+ and T_sR^+ stops again at 0+ (the
+reference simulator, `isp_twin.reference.axis`, does exactly this). Only
+the breakaway from exactly 0 differs from the literal reading; see
+docs/axis_model.md, "The side at angle 0". `Ts` and `Tc` are magnitudes for both directions:
 the paper's condition "T_s^- < T_m" reads as "-T_s^- < T_m".
 
 The law is written once, as plain-float scalar functions (`side_of`,
@@ -57,16 +64,22 @@ SCALAR_LAW = ("side_of", "regime_of", "stribeck", "sliding", "stiction")
 # the compiled closed loop must repeat the Python step bit for bit.
 
 
-def side_of(angle: float) -> int:
-    """The side of the angle: `SIDE_R` (angle > 0) or `SIDE_L` (angle <= 0)."""
-    return SIDE_R if angle > 0.0 else SIDE_L
+def side_of(angle: float, direction: float) -> int:
+    """The side of the angle: `SIDE_R` (angle > 0) or `SIDE_L` (angle < 0).
+
+    At angle 0 the side the motion in `direction` (as `regime_of`) enters:
+    `SIDE_R` for a positive direction, `SIDE_L` for a negative or zero one.
+    """
+    if angle > 0.0 or (angle == 0.0 and direction > 0.0):
+        return SIDE_R
+    return SIDE_L
 
 
 def regime_of(side: int, direction: float) -> int:
     """Index into `REGIMES` (0 = R+, 1 = R-, 2 = L+, 3 = L-).
 
     Args:
-        side: `SIDE_R` or `SIDE_L` (see `side_of`).
+        side: `SIDE_R` or `SIDE_L` (`side_of` the angle and this direction).
         direction: sign of motion: the rate while moving, the drive torque at
             rest (the stiction branch of Eq. 5); zero counts as positive.
     """
@@ -98,14 +111,17 @@ def regime_index(angle, direction) -> np.ndarray:
     Args:
         angle: gimbal angle relative to its parent (any angle unit) .
         direction: sign of motion (rate while moving, drive torque at rest);
-            zero counts as positive.
+            zero counts as positive, except that at angle 0 only a positive
+            direction is on the right (`side_of`).
 
     Returns:
         int array: 0 = R+, 1 = R-, 2 = L+, 3 = L-.
     """
     # The same test as `side_of` / `regime_of`, element-wise.
-    left = np.asarray(angle) <= 0.0
-    negative = np.asarray(direction) < 0.0
+    angle = np.asarray(angle)
+    direction = np.asarray(direction)
+    left = (angle < 0.0) | ((angle == 0.0) & ~(direction > 0.0))
+    negative = direction < 0.0
     return 2 * left.astype(np.intp) + negative.astype(np.intp)
 
 

@@ -65,9 +65,10 @@ def probe(cases: np.ndarray) -> np.ndarray:
     for i in range(cases.shape[0]):
         angle, rate, drive = cases[i, 0], cases[i, 1], cases[i, 2]
         ts, tc, al = cases[i, 3], cases[i, 4], cases[i, 5]
-        side = side_of(angle)
+        direction = rate if rate != 0.0 else drive
+        side = side_of(angle, direction)
         out[i, 0] = side
-        out[i, 1] = regime_of(side, rate if rate != 0.0 else drive)
+        out[i, 1] = regime_of(side, direction)
         out[i, 2] = stribeck(abs(rate), ts, tc, al)
         out[i, 3] = sliding(rate, ts, tc, al) if rate != 0.0 else 0.0
         out[i, 4] = stiction(drive, ts)
@@ -94,11 +95,12 @@ def python_law(cases: np.ndarray) -> np.ndarray:
     """
     out = []
     for angle, rate, drive, ts, tc, al in cases.tolist():
-        side = friction.side_of(angle)
+        direction = rate if rate != 0.0 else drive
+        side = friction.side_of(angle, direction)
         out.append(
             (
                 side,
-                friction.regime_of(side, rate if rate != 0.0 else drive),
+                friction.regime_of(side, direction),
                 friction.stribeck(abs(rate), ts, tc, al),
                 friction.sliding(rate, ts, tc, al) if rate != 0.0 else 0.0,
                 friction.stiction(drive, ts),

@@ -165,6 +165,14 @@ def _payload_motion(coef, yp, ydp, w1, w_rigid, h):  # pragma: no cover - compil
 
 
 @njit(cache=True, nogil=True)
+def _regime_at(angle, direction, fixed_side):  # pragma: no cover - compiled
+    """The regime for a motion in `direction` at `angle` (`law.side_of`),
+    the side `fixed_side` instead when it is >= 0."""
+    side = fixed_side if fixed_side >= 0 else law.side_of(angle, direction)
+    return law.regime_of(side, direction)
+
+
+@njit(cache=True, nogil=True)
 def _payload_clamped(coef, yp, ydp):  # pragma: no cover - compiled
     """The payload ringing over a sub-step with the motor side stuck:
     ``(1 + r) y'' + 2 zeta wn y' + wn^2 y = 0`` (the clamped frequency)."""
@@ -264,7 +272,6 @@ def _advance_group(
         if payload:
             yp[b] = kstate[r_lo + b, 1]
             ydp[b] = kstate[r_lo + b, 2]
-    fixed = fixed_side
     for k in range(k_lo, k_hi):
         for b in range(nb):
             i = r_lo + b
@@ -280,14 +287,14 @@ def _advance_group(
             for b in range(nb):
                 i = r_lo + b
                 wb = w[b]
-                if fixed_side >= 0:
-                    side = fixed
-                elif use_side:
-                    side = law.side_of(y0[b] if j == 0 else y0[b] + fj * dy[b])
+                # The angle choosing the half-plane; at exactly 0 the side
+                # also depends on the direction (`law.side_of`).
+                if use_side:
+                    a = y0[b] if j == 0 else y0[b] + fj * dy[b]
                 else:
-                    side = law.side_of(y[b])
+                    a = y[b]
                 if wb != 0.0:
-                    ix = law.regime_of(side, wb)
+                    ix = _regime_at(a, wb, fixed_side)
                     p = table[i, ix, 0]
                     drive = table[i, ix, 1] * uk[b] + table[i, ix, 5] * ek[b]
                     ts = table[i, ix, 2]
@@ -323,9 +330,9 @@ def _advance_group(
                         w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
-                            r0 = law.regime_of(side, uk[b])
+                            r0 = _regime_at(a, uk[b], fixed_side)
                             d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
-                            ix = law.regime_of(side, d)
+                            ix = _regime_at(a, d, fixed_side)
                             ts2 = table[i, ix, 2]
                             if abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
@@ -341,13 +348,13 @@ def _advance_group(
                 else:
                     # At rest the command's sign picks the gain and the total
                     # drive's sign the breakaway level (as `axis_model.simulate`).
-                    r0 = law.regime_of(side, uk[b])
+                    r0 = _regime_at(a, uk[b], fixed_side)
                     d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
                     dd = d  # the motor side's drive: the payload's spring pulls on it
                     if payload:
                         spring = sfx[i, 3] * yp[b] + sfx[i, 4] * ydp[b]
                         dd = d + table[i, r0, 5] * dt * spring
-                    ix = law.regime_of(side, dd)
+                    ix = _regime_at(a, dd, fixed_side)
                     ts = table[i, ix, 2]
                     if abs(dd) > ts:
                         wb = d - law.stiction(dd, ts)

@@ -465,7 +465,7 @@ class Twin:
             if not -MAX_RATE < w < MAX_RATE:
                 raise self.rate_diverged(s, w)
             _, visc, ts, tc, al, rest_f, rest_b = tab[s]
-            side = side_of(q[s])
+            side = side_of(q[s], w)
             if w > REST_RATE or w < -REST_RATE:
                 r = regime_of(side, w)
                 fl[s] = stribeck(abs(w), ts[r], tc[r], al[r])

@@ -1,0 +1,84 @@
+"""The side at angle 0: an axis at rest on the boundary between the half-planes.
+
+Eq. 5 puts Y = 0 in L, but a positive motion from Y = 0 is at once in Y > 0
+where R+ holds: with a drive between the L+ and R+ breakaway torques the
+axis stops again at 0+. The reference simulator (`isp_twin.reference`, which
+shares no code with the model) does exactly this; the model must agree when
+the data start on the boundary (`isp_twin.model.friction.side_of`,
+`isp_twin.identification.side_angle.at_boundary`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from isp_twin.identification.cost import rmse
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.read_out import Timing
+from isp_twin.identification.side_angle import at_boundary, fused_angle
+from isp_twin.model.parameters import RATE_LAYOUT, RateParams
+from isp_twin.reference import REGIME_NAMES, Axis, RegimeFriction, Sensors, simulate
+from isp_twin.reference.truth import rate_form
+
+SIGMA = 1e-3  # gyro noise [rad/s]
+SENSORS = Sensors(gyro_noise_rad_s=SIGMA, gyro_averaged=True, resolver_bits=19)
+
+
+def _axis() -> Axis:
+    # R+ breaks away at 0.050 N·m, L+ at 0.030: a drive of 0.040 N·m moves
+    # the axis from angle 0 only if the left half-plane's law is used.
+    return Axis(
+        0.012,
+        0.25,
+        1e-4,
+        (
+            RegimeFriction(0.050, 0.030, 300.0),
+            RegimeFriction(0.045, 0.028, 250.0),
+            RegimeFriction(0.030, 0.020, 290.0),
+            RegimeFriction(0.035, 0.024, 280.0),
+        ),
+    )
+
+
+def _run(u: np.ndarray, theta0: float, seed: int) -> MeasuredData:
+    r = simulate(_axis(), u, sensors=SENSORS, theta0_rad=theta0, seed=seed)
+    return MeasuredData("run", r.t, r.u, r.omega, r.theta, None, 1e-3)
+
+
+def _truth() -> RateParams:
+    form = rate_form(_axis())
+    return RateParams.from_vector(
+        np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
+    )
+
+
+def _steps() -> np.ndarray:
+    # +400 digits (0.040 N·m: between L+ and R+), then -600, then +800.
+    return np.concatenate([np.full(400, 400.0), np.full(400, -600.0), np.full(400, 800.0)])
+
+
+def test_the_reference_sticks_at_zero_under_a_drive_between_the_two_breakaways():
+    r = simulate(_axis(), _steps(), sensors=SENSORS, theta0_rad=0.0, seed=None)
+    assert np.all(r.rate[:400] == 0.0)
+    assert np.all(r.theta[:400] == 0.0)  # the resolver reads 0 all along
+    assert np.any(r.rate[400:800] < 0.0)
+
+
+def test_the_model_with_the_true_parameters_stays_at_rest_on_the_boundary():
+    """Over seeds: the truth reaches the noise. Reading the side from the
+    fused angle's noisy sign instead breaks away on L+ (tens of sigmas)."""
+    truth = _truth()
+    for seed in range(5):
+        data = _run(_steps(), 0.0, seed)
+        boundary = at_boundary(data, fused_angle(data))
+        assert boundary[5:395].all()  # the stuck stretch, away from the run's edge
+        assert not boundary[420:].any()  # moving: never
+        err = float(rmse(truth, [data], timing=Timing(0.0, True))) / SIGMA
+        assert err < 1.3, (seed, err)
+
+
+def test_a_fast_crossing_through_a_zero_reading_keeps_the_fused_angle():
+    # A sweep through 0 at about 1 rad/s: a single reading of 0 at most.
+    u = np.full(1500, -900.0)
+    data = _run(u, 0.05, 3)
+    assert not at_boundary(data, fused_angle(data)).any()
