@@ -34,7 +34,7 @@ from isp_twin.reference import RUN_NAMES  # noqa: E402
 BOUND = 1.3
 
 
-def one(seed: int, workdir: Path, diagnose: bool, timeout_s: float) -> dict:
+def one(seed: int, workdir: Path, diagnose: bool, timeout_s: float, extra: tuple = ()) -> dict:
     """Write, identify (and diagnose) one clean axis; the ratios and times."""
     import yaml
 
@@ -56,6 +56,7 @@ def one(seed: int, workdir: Path, diagnose: bool, timeout_s: float) -> dict:
     rec = {"seed": seed, "tau_ms": 1e3 * truth["physical"]["time_constant_s"]}
     args = ["identify", "train1.csv", "train2.csv", "--validate", "heldout.csv"]
     args += ["--out", "params.yaml", "--json", "identify.json", "--no-report", "--quiet"]
+    args += list(extra)
     code, wall, cpu, last, _ = run_command(args, folder, timeout_s)
     rec.update(identify_code=code, identify_cpu_s=cpu, identify_wall_s=wall)
     if code != 0:
@@ -92,11 +93,17 @@ def main() -> None:
     p.add_argument("--jobs", type=int, default=1, choices=(1, 2))
     p.add_argument("--diagnose", action="store_true")
     p.add_argument("--timeout", type=float, default=300.0)
+    p.add_argument(
+        "--identify-args", default="", help="more identify options, e.g. '--regime-spread none'"
+    )
     args = p.parse_args()
+    extra = tuple(args.identify_args.split())
     first, last = (int(v) for v in args.seeds.split("-"))
     seeds = list(range(first, last + 1))
     with ProcessPoolExecutor(args.jobs) as pool:
-        futures = [pool.submit(one, s, args.workdir, args.diagnose, args.timeout) for s in seeds]
+        futures = [
+            pool.submit(one, s, args.workdir, args.diagnose, args.timeout, extra) for s in seeds
+        ]
         recs = []
         for f in futures:
             r = f.result()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
@@ -94,6 +95,15 @@ def _add_search_options(p) -> None:
         default=Settings.rest_rate_deg_s,
         metavar="DEG_S",
         help="|rate| counted as at rest [deg/s]",
+    )
+    p.add_argument(
+        "--regime-spread",
+        type=_spread,
+        default=Settings.regime_spread,
+        metavar="FACTOR",
+        help="factor within which the regimes' Tc, Ts-Tc and alpha are expected to "
+        "agree (a weak prior for what the runs leave open; 'none': no prior; "
+        f"default {Settings.regime_spread:g})",
     )
 
 
@@ -194,7 +204,21 @@ def _settings(args) -> Settings:
         side_source=args.side_source,
         prior_in_search=args.prior_in_search,
         integration=integration_from_args(args),
+        regime_spread=args.regime_spread,
     )
+
+
+def _spread(text: str) -> float | None:
+    """--regime-spread: 'none' or a factor > 1."""
+    if text.strip().lower() == "none":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 1.0:
+        raise argparse.ArgumentTypeError(f"expected a factor > 1 or 'none', got '{text}'")
+    return value
 
 
 def _progress_printer(show: bool):

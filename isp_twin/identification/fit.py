@@ -72,6 +72,7 @@ from isp_twin.identification.search_space import (
     FreeParameters,
     free_parameters,
     from_z,
+    regime_prior_residuals,
     robust_to_storage,
     to_z,
     z_limits,
@@ -130,6 +131,11 @@ class Settings:
             `TIMINGS` that fits best (``side_source="measured"``; else Eq. 6's).
         integration: how the model integrates a sample
             (`isp_twin.model.substep_model.Integration`; `EQ6` is the paper's Eq. 6).
+        regime_spread: the factor within which the regimes' friction
+            quantities (b·Tc, b·(Ts-Tc), alpha) are expected to agree, one
+            standard deviation of a weak prior that pulls each toward the
+            visited regimes' geometric mean in the least-squares refinement
+            (`regime_prior_residuals`); None: no such prior.
     """
 
     seed: int = 0
@@ -145,6 +151,7 @@ class Settings:
     prior_in_search: bool = False
     timing: Timing | None = None
     integration: Integration = DEFAULT_INTEGRATION
+    regime_spread: float | None = 3.0
 
     def __post_init__(self):
         if self.side_source not in SIDE_SOURCES:
@@ -153,6 +160,8 @@ class Settings:
             )
         if self.population < 5 or self.generations < 0:
             raise ParameterError("population >= 5 and generations >= 0 required")
+        if self.regime_spread is not None and not self.regime_spread > 1.0:
+            raise ParameterError(f"regime spread must be > 1 (a factor), got {self.regime_spread}")
 
 
 class IdentificationStatus(Enum):
@@ -350,6 +359,7 @@ class _Search:
         speed = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
         self.z_lo, self.z_hi = z_limits(free.x0, u_peak, max(speed, 1e-9))
         self.cache: dict[str, np.ndarray] = {}
+        self.prior = regime_prior_residuals(int(free.visited.sum()), s.regime_spread, self.noise)
         self.starts: list[np.ndarray] = [to_z(free.x0)]
         self.z_best = self.starts[0]
         self.best_cost = np.inf
@@ -416,19 +426,21 @@ class _Search:
 
     def resid(self, z: np.ndarray) -> np.ndarray:
         self.evaluate(z, jacobian=False)
-        return self.cache["e"]
+        return np.concatenate([self.cache["e"], self.prior @ z])
 
     def jac(self, z: np.ndarray) -> np.ndarray:
         self.evaluate(z, jacobian=True)
-        return self.cache["j"]
+        return np.vstack([self.cache["j"], self.prior])
 
     def refine(self, z: np.ndarray, budget: int) -> tuple[np.ndarray, float, str]:
-        """Least squares on Eq. 9's residuals from z; (z, cost, the solver's message)."""
+        """Least squares on Eq. 9's residuals (and the regime prior's) from z;
+        (z, Eq. 9's cost there, the solver's message)."""
         fit = trust_region(
             self.resid, self.jac, z, self.z_lo, self.z_hi, budget, _REFINE_FTOL
         )  # fmt: skip
         self.last_refinement = fit.status
-        return fit.x, float(np.sqrt(fit.sse / fit.residual.size)), fit.message
+        data = fit.residual[: fit.residual.size - self.prior.shape[0]]
+        return fit.x, float(np.sqrt(np.mean(data**2))), fit.message
 
     def record(self, stage: str, cost: float | None = None) -> None:
         """Append the best cost (or `cost`) to the history and the log."""

@@ -26,6 +26,8 @@ __all__ = [
     "to_z",
     "from_z",
     "z_limits",
+    "PRIOR_FIELDS",
+    "regime_prior_residuals",
     "robust_to_storage",
     "embed",
 ]
@@ -72,6 +74,36 @@ def from_z(z: np.ndarray) -> np.ndarray:
     e = np.exp(r)
     x = np.stack([1.0 - e[..., 0], e[..., 1], e[..., 2] + e[..., 3], e[..., 2], e[..., 4]], axis=-1)
     return x.reshape(z.shape)
+
+
+#: The fields of `to_z` the regime prior ties together (`regime_prior_residuals`):
+#: log b·Tc, log b·(Ts-Tc), log alpha.
+PRIOR_FIELDS = (2, 3, 4)
+
+
+def regime_prior_residuals(n_regimes: int, spread: float | None, noise: float) -> np.ndarray:
+    """The regime prior as a linear map of the search variables, shape (K, 5 n_regimes).
+
+    Row per regime and friction field (`PRIOR_FIELDS`):
+    ``noise (z_r - mean over regimes of z) / log(spread)``. Appended to
+    Eq. 9's residuals (rate noise `noise` [rad/s] per sample) it adds to the
+    sum of squares what a Gaussian prior of width log(spread) on each field's
+    deviation from the regimes' geometric mean adds to -2 log-likelihood: a
+    quantity the runs determine moves by a negligible fraction of its
+    interval, one the runs leave open (a Stribeck curve whose speeds no run
+    reaches) goes to the other regimes' value instead of an arbitrary one.
+    No rows (K = 0) without a spread, a noise or a second regime.
+    """
+    n = RATE_LAYOUT.n_fields * n_regimes
+    if spread is None or n_regimes < 2 or not noise > 0.0:
+        return np.zeros((0, n))
+    centre = np.eye(n_regimes) - 1.0 / n_regimes
+    rows = []
+    for f in PRIOR_FIELDS:
+        block = np.zeros((n_regimes, n))
+        block[:, f :: RATE_LAYOUT.n_fields] = centre
+        rows.append(block)
+    return np.vstack(rows) * (noise / np.log(spread))
 
 
 def z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, np.ndarray]:
