@@ -12,6 +12,8 @@ from isp_twin.diagnosis.rounds import _effect_itself, _RoundState
 from isp_twin.diagnosis.synthetic import excitation, make_run
 from isp_twin.estimation.least_squares import FitStatus
 from isp_twin.estimation.simulation_error import stack_runs
+from isp_twin.model.effects.base import Effect
+from isp_twin.model.effects.deadzone import Deadzone
 from isp_twin.model.parameters import EffectSpec, load_parameters
 from isp_twin.model.substep_model import EQ6
 from isp_twin.resources import default_parameters_path
@@ -25,6 +27,7 @@ class _Held:
 
     def __init__(self, stack):
         self.stack = stack
+        self.train = stack
 
     def held_residuals(self, fits):
         return holdout_residuals(self.stack, fits)
@@ -76,3 +79,10 @@ def test_a_null_effect_on_better_rates_is_overruled_and_a_real_effect_kept(seed)
     assert not after["input_delay"].significant
     assert "switched off" in after["input_delay"].reason
     assert after["cogging"].significant
+
+
+def test_a_dead_zone_narrower_than_its_search_is_negligible():
+    assert Deadzone.negligible({"width_digits": 0.37}, 900.0)
+    assert "below 0.5%" in Deadzone.negligible({"width_digits": 4.4}, 900.0)
+    assert Deadzone.negligible({"width_digits": 4.6}, 900.0) == ""
+    assert Effect.negligible({}, 900.0) == ""

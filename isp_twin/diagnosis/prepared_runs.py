@@ -225,7 +225,13 @@ def read_out_timing(
         base_id = identify(
             runs,
             ax,
-            IdSettings(side_source=side_source, seed=seed, integration=integration, timing=timing),
+            IdSettings(
+                side_source=side_source,
+                seed=seed,
+                integration=integration,
+                timing=timing,
+                regime_spread=None,  # Eq. 9 alone, as every diagnose fit (`identify_held`)
+            ),
         )
         return base_id, base_id.timing
     if side_source == "measured" and timing is None:

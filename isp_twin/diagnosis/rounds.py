@@ -495,20 +495,28 @@ def _refit_globally(
 
 def identify_held(data: DiagnosisData, effects, timing, **options) -> IdentificationResult:
     """`identify` on the training runs with `effects` held, at the read-out
-    `timing` (None: chosen again); `options`: further `IdSettings` fields."""
+    `timing` (None: chosen again); `options`: further `IdSettings` fields.
+
+    Without identify's regime prior: diagnose fits every model, base and
+    candidates, to Eq. 9 alone, and the prior moved the refit of a leading
+    input delay into another basin (reference input_delay seed 0: held-out
+    1.36 -> 11.6 noise floors with it; docs/diagnosis.md "Stop 19")."""
     settings = IdSettings(
         side_source=data.side_source,
         seed=data.seed,
         timing=timing,
         integration=data.train.integration,
-        **options,
+        **{"regime_spread": None, **options},
     )
     return identify(data.runs.raw, replace(data.ax, effects=tuple(effects)), settings)
 
 
 def _effect_itself(data, st, verdicts) -> list[Verdict]:
     """Each significant candidate judged again against its own refit with the
-    effect switched off (`_switched_off`), by the held-out rules alone.
+    effect switched off (`_switched_off`), by the held-out rules alone; one
+    whose parameters are too small to be the effect (`Effect.negligible`:
+    a dead zone narrower than the narrowest its search tries) is overruled
+    first.
 
     A candidate's refit moves the rate parameters too (locally, jointly or
     with identify's global method): where the better held-out error comes
@@ -517,11 +525,18 @@ def _effect_itself(data, st, verdicts) -> list[Verdict]:
     answer. A real effect fails without itself: the rate parameters fitted
     beside it do not stand in for it.
     """
-    sig = [v for v in verdicts if v.significant]
-    if not sig:
-        return list(verdicts)
-    offs = data.held_residuals([_switched_off(st.fits[v.name]) for v in sig])
     overruled = {}
+    u_peak = float(np.max(np.abs(data.train.u)))
+    for v in verdicts:
+        why = (
+            effect_class(v.name).negligible(st.fits[v.name].params, u_peak) if v.significant else ""
+        )
+        if why:
+            overruled[v.name] = replace(v, significant=False, reason=why)
+    sig = [v for v in verdicts if v.significant and v.name not in overruled]
+    if not sig:
+        return [overruled.get(v.name, v) for v in verdicts]
+    offs = data.held_residuals([_switched_off(st.fits[v.name]) for v in sig])
     for v, held_off in zip(sig, offs):
         # Held-out rules 1-3 only (the BIC arguments make rule 4 pass).
         own = judge(v.name, held_off, st.held_of[v.name], 0.0, -1.0, st.floor)

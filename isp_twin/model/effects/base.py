@@ -83,3 +83,9 @@ class Effect:
 
     def measure(self, rate: float) -> float:
         return rate
+
+    @classmethod
+    def negligible(cls, params: Mapping[str, float], u_peak: float) -> str:
+        """Why these parameters are too small to be this effect on runs whose
+        largest |command| is `u_peak`, or "" (the default: never)."""
+        return ""

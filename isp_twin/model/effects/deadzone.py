@@ -24,8 +24,24 @@ class Deadzone(Effect):
     def command(self, u):
         return np.sign(u) * np.maximum(np.abs(u) - self.params["width_digits"], 0.0)
 
+    #: The narrowest width tried and reported, a fraction of the largest command.
+    SMALLEST = 0.005
+
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
-        """A grid of widths, 0.5 % to 40 % of the largest command (geometric)."""
+        """A grid of widths, `SMALLEST` (0.5 %) to 40 % of the largest command (geometric)."""
         top = float(np.max(np.abs(ctx.u))) or 1.0
-        return [{"width_digits": f * top} for f in np.geomspace(0.005, 0.4, 40)]
+        return [{"width_digits": f * top} for f in np.geomspace(cls.SMALLEST, 0.4, 40)]
+
+    @classmethod
+    def negligible(cls, params, u_peak: float) -> str:
+        """A width below `SMALLEST` of the largest command: what it changes is
+        a shift of the friction levels by a fraction of a digit and the
+        stick/slip decision at a breakaway on the edge, not a dead band."""
+        width = float(params["width_digits"])
+        if width < cls.SMALLEST * u_peak:
+            return (
+                f"a dead zone of {width:.3g} digits is below {cls.SMALLEST:.1%} of the "
+                f"largest command ({u_peak:.4g})"
+            )
+        return ""
