@@ -558,10 +558,8 @@ def _switched_off(fit: CandidateFit) -> CandidateFit:
 
 def _as_base(fit: CandidateFit, base: CandidateFit) -> CandidateFit:
     """The base model written as `fit`'s candidate with its effect off (null parameters)."""
-    null = dict(effect_class(fit.name).null)
     return replace(
-        fit,
-        params={p: float(null[p]) for p in fit.params},
+        _switched_off(fit),
         ci95={p: float("nan") for p in fit.params},
         rate_vector=base.rate_vector.copy(),
         rate_ci95=base.rate_ci95.copy(),
