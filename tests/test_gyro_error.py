@@ -16,15 +16,15 @@ import numpy as np
 import pytest
 
 from isp_twin.errors import ParameterError
+from isp_twin.identification.equation_error import sensor_bias_joint_estimate
 from isp_twin.identification.gyro_error import (
     GyroError,
     gyro_error_estimate,
     rate_behind_gyro_error,
-    sensor_bias_joint_estimate,
 )
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.effects.torque_offset import implied_offset
-from isp_twin.model.parameters import RateParams
+from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
 from isp_twin.reference import design_experiment
 
 DT = 1e-3
@@ -162,3 +162,47 @@ def test_the_offset_implied_by_shifted_levels_is_the_offset_plus_the_asymmetry()
     assert got.consistent
     assert got.value_rad_s2 == pytest.approx(offset, rel=1e-12)
     assert math.isfinite(got.ci95) and got.ci95 > 0
+
+
+def test_true_rate_inverts_measure():
+    from isp_twin.model.effects import make_effect
+
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        params = {"bias_rad_s": rng.uniform(-0.02, 0.02), "scale": rng.uniform(-0.05, 0.05)}
+        e = make_effect(EffectSpec("sensor_bias", params))
+        w = rng.normal(0.0, 1.0, 50)
+        np.testing.assert_allclose(e.true_rate(e.measure(w)), w, rtol=0, atol=1e-12)
+
+
+def test_the_fusion_corrects_the_reading_for_the_error_the_angle_shows():
+    # A 3 % scale error leaves s (theta - smooth(theta)) in the fused angle
+    # of the raw reading; corrected first, only the quantization is left.
+    from isp_twin.identification.side_angle import FUSION_WINDOW, fused_angle
+
+    rng = np.random.default_rng(7)
+    run = _run(rng, 0.004, 0.03, 2e-4, bits=19)
+    exact = _run(np.random.default_rng(7), 0.0, 0.0, 0.0, bits=60).angle
+    integral = np.cumsum(run.omega) * DT
+    gap = np.pad(run.angle - integral, FUSION_WINDOW // 2, mode="edge")
+    raw_fusion = integral + np.convolve(gap, np.ones(FUSION_WINDOW) / FUSION_WINDOW, "valid")
+    lsb = 2 * np.pi / 2**19
+    assert np.max(np.abs(fused_angle(run) - exact)) < lsb
+    assert np.max(np.abs(raw_fusion - exact)) > 5 * lsb
+
+
+def test_a_biased_gyro_reading_at_rest_starts_the_model_at_rest():
+    # The first reading is b, not a motion: with the sensor_bias effect the
+    # model starts at rest (the rest rule on the rate behind the reading)
+    # and, stuck under a small command, reads b throughout.
+    from isp_twin.estimation.simulation_error import predict_one, stack_runs
+
+    n, b = 500, 0.01
+    noise = 1e-4 * np.random.default_rng(3).standard_normal(n)
+    run = MeasuredData("rest", np.arange(n) * DT, np.full(n, 0.1), b + noise, np.zeros(n), None, DT)
+    x = np.tile([0.99, 1e-3, 5e-3, 4e-3, 10.0], RATE_LAYOUT.n_regimes)
+    stack = stack_runs([run], warmup=1, rest=3e-4)
+    spec = EffectSpec("sensor_bias", {"bias_rad_s": b, "scale": 0.0})
+    with_effect = predict_one(stack, x, (spec,)).omega[0]
+    np.testing.assert_allclose(with_effect[1:], b, rtol=0, atol=1e-12)
+    assert np.max(np.abs(predict_one(stack, x).omega[0][1:] - b)) > 5e-3

@@ -27,10 +27,10 @@ from isp_twin.identification.equation_error import (
     JointEstimate,
     equation_error_estimate,
     joint_equation_error_estimate,
+    sensor_bias_joint_estimate,
 )
 from isp_twin.identification.fit import IdentificationResult, identify
 from isp_twin.identification.fit import Settings as IdSettings
-from isp_twin.identification.gyro_error import sensor_bias_joint_estimate
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import (
     RATE_LAYOUT,

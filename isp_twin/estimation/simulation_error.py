@@ -67,6 +67,10 @@ class RunStack:
             sample (`isp_twin.identification.read_out.Timing`).
         integration: how the model integrates a sample
             (`isp_twin.model.substep_model.Integration`).
+        first_reading: each run's first measured rate [rad/s], (R,), before
+            the rest rule (`stack_runs`); None: ``omega[:, 0]``.
+        rest_level: a first rate at most this large is rest [rad/s], (R,);
+            None: none is.
     """
 
     names: tuple[str, ...]
@@ -78,6 +82,8 @@ class RunStack:
     side: int | None = None
     gyro_average: bool = False
     integration: Integration = DEFAULT_INTEGRATION
+    first_reading: np.ndarray | None = None
+    rest_level: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
@@ -143,6 +149,7 @@ def stack_runs(
     shape = (len(runs), n)
     u, omega, angle = np.zeros(shape), np.zeros(shape), np.zeros(shape)
     mask = np.zeros(shape, dtype=bool)
+    first, levels = np.zeros(len(runs)), np.zeros(len(runs))
     for i, r in enumerate(runs):
         m = len(r.u)
         u[i, :m] = r.u
@@ -156,10 +163,33 @@ def stack_runs(
         level = rest
         if level is None:
             level = 3.0 * noise_floor_of([np.asarray(r.omega[:2000], float)]) if m > 8 else -1.0
+        first[i], levels[i] = r.omega[0], level
         if abs(r.omega[0]) <= level:
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
-    return RunStack(names, u, omega, angle, mask, dt, side, gyro_average, integration)
+    return RunStack(
+        names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels
+    )
+
+
+def _initial_rates(stack: RunStack, effects: Sequence, p: int) -> np.ndarray:
+    """The model's rate at sample 0 per row (set-major, (P*R,)) [rad/s].
+
+    The first reading is the initial state. Where a sensor effect says what
+    true rate a reading means (`Effect.true_rate`: a gyro bias reads b at
+    rest), the reading is mapped back first and the rest rule (`stack_runs`)
+    applied to that rate: a biased gyro's first reading is not a motion.
+    """
+    omega0 = np.tile(stack.omega[:, 0], p)
+    sensors = [e for e in effects if e.maps_readings]
+    if not sensors or stack.first_reading is None:
+        return omega0
+    rate = np.tile(stack.first_reading, p)
+    for e in reversed(sensors):
+        rate = e.true_rate(rate)
+    rate = np.broadcast_to(np.asarray(rate, float), omega0.shape).copy()
+    rate[np.abs(rate) <= np.tile(stack.rest_level, p)] = 0.0
+    return rate
 
 
 def predict(
@@ -199,7 +229,7 @@ def predict(
         RateParams.from_vector(rows),
         np.tile(stack.u, (p, 1)),
         stack.dt,
-        omega0=np.tile(stack.omega[:, 0], p),
+        omega0=_initial_rates(stack, batch, p),
         angle0=np.tile(stack.angle[:, 0], p),
         angle_measured=np.tile(stack.angle, (p, 1)),
         effects=batch,

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from isp_twin.identification.cost import rate_noise
+from isp_twin.identification.gyro_error import gyro_error_estimate, rate_behind_gyro_error
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.side_angle import side_angle
 from isp_twin.model.effects import Effect, effect_class, make_effect
@@ -29,6 +30,7 @@ __all__ = [
     "JOINT_FORMS",
     "JointEstimate",
     "joint_equation_error_estimate",
+    "sensor_bias_joint_estimate",
 ]
 
 
@@ -622,3 +624,20 @@ def _effect_drive(
             u[k] = e.command(u[k])
         more[k] = sum(float(e.acceleration(side_y[k], d.omega[k])) for e in built) * d.dt
     return u, more
+
+
+def sensor_bias_joint_estimate(
+    data: Sequence[MeasuredData], base: RateParams
+) -> JointEstimate | None:
+    """The `sensor_bias` effect and the base together: the gyro error from
+    the angle (`gyro_error_estimate`), the base fitted to the gyro reading
+    mapped back to the true rate (`rate_behind_gyro_error`).
+
+    Returns None when the estimate's 95 % intervals contain the exact gyro
+    (b = 0 and s = 0): the angle shows no gyro error to start from.
+    """
+    est = gyro_error_estimate(data)
+    if est.contains_null():
+        return None
+    spec = EffectSpec("sensor_bias", {"bias_rad_s": est.bias_rad_s, "scale": est.scale})
+    return JointEstimate(rate_behind_gyro_error(base, est), spec, float("nan"), float("nan"))

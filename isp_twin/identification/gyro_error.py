@@ -35,15 +35,14 @@ import numpy as np
 
 from isp_twin.errors import ParameterError
 from isp_twin.estimation.verdict import noise_floor_of
-from isp_twin.identification.equation_error import JointEstimate
 from isp_twin.identification.measured import MeasuredData
-from isp_twin.model.parameters import EffectSpec, RateParams
+from isp_twin.model.parameters import RateParams
 
 __all__ = [
     "GyroError",
     "gyro_error_estimate",
     "rate_behind_gyro_error",
-    "sensor_bias_joint_estimate",
+    "reading_error",
 ]
 
 #: Student-t-free 95 % factor (thousands of samples per run).
@@ -158,21 +157,16 @@ def _covariance(x: np.ndarray, resid: np.ndarray, runs: list[MeasuredData], a: f
     return xtx_inv @ meat @ xtx_inv
 
 
-def sensor_bias_joint_estimate(
-    data: Sequence[MeasuredData], base: RateParams
-) -> JointEstimate | None:
-    """The `sensor_bias` effect and the base together: the gyro error from
-    the angle (`gyro_error_estimate`), the base fitted to the gyro reading
-    mapped back to the true rate (`rate_behind_gyro_error`).
-
-    Returns None when the estimate's 95 % intervals contain the exact gyro
-    (b = 0 and s = 0): the angle shows no gyro error to start from.
-    """
-    est = gyro_error_estimate(data)
-    if est.contains_null():
+def reading_error(run: MeasuredData) -> GyroError | None:
+    """The gyro error of one run measured against its angle (`gyro_error_estimate`),
+    or None where its intervals contain the exact gyro or the run cannot tell
+    (too short, the angle does not move): the correction the angle fusion
+    applies to the reading (`isp_twin.identification.side_angle.fused_angle`)."""
+    try:
+        est = gyro_error_estimate([run])
+    except ParameterError:
         return None
-    spec = EffectSpec("sensor_bias", {"bias_rad_s": est.bias_rad_s, "scale": est.scale})
-    return JointEstimate(rate_behind_gyro_error(base, est), spec, float("nan"), float("nan"))
+    return None if est.contains_null() else est
 
 
 def rate_behind_gyro_error(fitted: RateParams, est: GyroError) -> RateParams:

@@ -84,6 +84,14 @@ class Effect:
     def measure(self, rate: float) -> float:
         return rate
 
+    #: Whether `true_rate` maps a reading back (a sensor error known at rest).
+    maps_readings: ClassVar[bool] = False
+
+    def true_rate(self, reading: float) -> float:
+        """The true rate a reading means at rest or in steady motion (the
+        inverse of `measure` where it has one; the reading itself by default)."""
+        return reading
+
     @classmethod
     def negligible(cls, params: Mapping[str, float], u_peak: float) -> str:
         """Why these parameters are too small to be this effect on runs whose

@@ -34,6 +34,12 @@ class SensorBias(Effect):
         p = self.params
         return p["bias_rad_s"] + (1.0 + p["scale"]) * rate
 
+    maps_readings = True
+
+    def true_rate(self, reading):
+        p = self.params
+        return (reading - p["bias_rad_s"]) / (1.0 + p["scale"])
+
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
         """Regress the gyro on the angle sensor's rate over 20-sample windows
