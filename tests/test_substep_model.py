@@ -291,7 +291,9 @@ def _per_sample_loop(params, u, angle, effects, integration, omega0):
         for e in effects:
             uk = e.command(uk)
         u_eff[:, k - 1] = uk
-        extra[:, k - 1] = sum(e.acceleration(angle[:, k - 1], w) for e in effects) * DT
+        # Integration.midstep_angle: the torque of step k at its mean angle.
+        at = 0.5 * (angle[:, k - 1] + angle[:, k]) if integration.midstep_angle else angle[:, k - 1]
+        extra[:, k - 1] = sum(e.acceleration(at, w) for e in effects) * DT
         _advance_rows(table, u_eff, extra, angle, True, -1, k, k + 1, m, DT,
                       integration.midpoint_friction, integration.split_reversals, w, y, point,
                       reading, ang, regime, 0, n_rows)  # fmt: skip
@@ -325,13 +327,14 @@ def test_effects_evaluated_before_the_run_give_the_per_sample_numbers(names):
                 make_batched(n, specs[n], DT) for n in names]  # fmt: skip
 
     kw = {"omega0": omega0, "angle0": angle_rows[:, 0], "angle_measured": angle_rows}
-    got = simulate_substeps(params, u, DT, effects=effects(), **kw)
-    want = _per_sample_loop(
-        params, np.tile(u, (n_sets, 1)), angle_rows, effects(), Integration(), omega0
-    )
-    assert np.array_equal(got.omega, want[0])
-    assert np.array_equal(got.angle, want[1])
-    assert np.array_equal(got.regime[:, 1:], want[2][:, 1:])
+    for integration in (Integration(), Integration(midstep_angle=False)):
+        got = simulate_substeps(params, u, DT, effects=effects(), integration=integration, **kw)
+        want = _per_sample_loop(
+            params, np.tile(u, (n_sets, 1)), angle_rows, effects(), integration, omega0
+        )
+        assert np.array_equal(got.omega, want[0])
+        assert np.array_equal(got.angle, want[1])
+        assert np.array_equal(got.regime[:, 1:], want[2][:, 1:])
     plain = simulate_substeps(params, u, DT, **kw)
     assert not np.array_equal(got.omega, plain.omega)  # the effects acted
 

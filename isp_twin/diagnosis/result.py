@@ -180,6 +180,7 @@ class Diagnosis:
                 "midpoint_friction": self.integration.midpoint_friction,
                 "split_reversals": self.integration.split_reversals,
                 "exact_effect_hold": self.integration.exact_effect_hold,
+                "midstep_angle": self.integration.midstep_angle,
             },
             "units": {
                 "rmse_before": "rad/s",

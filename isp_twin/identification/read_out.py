@@ -56,6 +56,7 @@ def fitted_with(integration: Integration, timing: Timing) -> FittedWith:
         exact_effect_hold=bool(integration.exact_effect_hold),
         gyro_average=bool(timing.gyro_average),
         side_shift_steps=float(timing.side_shift),
+        midstep_angle=bool(integration.midstep_angle),
     )
 
 
@@ -66,6 +67,7 @@ def recorded_model(record: FittedWith) -> tuple[Integration, Timing]:
         record.midpoint_friction,
         record.split_reversals,
         record.exact_effect_hold,
+        record.midstep_angle,
     )
     return integration, Timing(record.side_shift_steps, record.gyro_average)
 

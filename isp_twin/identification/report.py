@@ -152,6 +152,7 @@ def result_json(
             "midpoint_friction": result.integration.midpoint_friction,
             "split_reversals": result.integration.split_reversals,
             "exact_effect_hold": result.integration.exact_effect_hold,
+            "midstep_angle": result.integration.midstep_angle,
         },
     }
 

@@ -111,6 +111,9 @@ class FittedWith:
             breakaway for its remaining part.
         exact_effect_hold: effects' accelerations held by their exact
             zero-order hold over the sample.
+        midstep_angle: torques of the measured angle taken at the step's
+            mean angle (optional in a file: absent means false, the model
+            files written before it was fitted with).
         gyro_average: the gyro reads the rate averaged over the sample (else
             the rate at the sample instant).
         side_shift_steps: the half-plane is read from the angle at step start
@@ -123,6 +126,7 @@ class FittedWith:
     exact_effect_hold: bool
     gyro_average: bool
     side_shift_steps: float
+    midstep_angle: bool = False
 
 
 #: Keys of a ``fitted_with:`` block, in `FittedWith` order.
@@ -133,6 +137,7 @@ FITTED_WITH_KEYS: tuple[str, ...] = (
     "exact_effect_hold",
     "gyro_average",
     "side_shift_steps",
+    "midstep_angle",
 )
 #: Largest sub-step count a file or ``--substeps`` may ask for.
 MAX_SUBSTEPS = 100
@@ -355,7 +360,7 @@ def _parse_effects(raw, path, keys) -> tuple[EffectSpec, ...]:
 
 
 def _parse_fitted_with(raw, path, keys) -> FittedWith:
-    _check_keys(raw, FITTED_WITH_KEYS, path, keys, required=FITTED_WITH_KEYS)
+    _check_keys(raw, FITTED_WITH_KEYS, path, keys, required=FITTED_WITH_KEYS[:6])
     m = raw["substeps"]
     if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= MAX_SUBSTEPS:
         raise ParameterError(
@@ -369,13 +374,18 @@ def _parse_fitted_with(raw, path, keys) -> FittedWith:
                 f"{_where(path, keys + [k])}: expected true or false, got {raw[k]!r}"
             )
         flags[k] = raw[k]
+    midstep = raw.get("midstep_angle", False)
+    if not isinstance(midstep, bool):
+        raise ParameterError(
+            f"{_where(path, keys + ['midstep_angle'])}: expected true or false, got {midstep!r}"
+        )
     shift = _number(raw["side_shift_steps"], path, keys + ["side_shift_steps"])
     if not 0.0 <= shift < 1.0:
         raise ParameterError(
             f"{_where(path, keys + ['side_shift_steps'])}: must lie in [0, 1) (a fraction of a "
             f"step), got {shift}"
         )
-    return FittedWith(substeps=m, side_shift_steps=shift, **flags)
+    return FittedWith(substeps=m, side_shift_steps=shift, midstep_angle=midstep, **flags)
 
 
 def _parse_axis(raw, path, keys) -> AxisParams:
@@ -471,6 +481,7 @@ def parameters_to_dict(params: ParameterSet) -> dict:
                 "substeps": int(f.substeps),
                 **{k: bool(getattr(f, k)) for k in FITTED_WITH_KEYS[1:5]},
                 "side_shift_steps": float(f.side_shift_steps),
+                "midstep_angle": bool(f.midstep_angle),
             }
         axes[name] = out
     return {

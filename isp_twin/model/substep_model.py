@@ -92,12 +92,20 @@ class Integration:
             twin's explicit-Euler convention, docs/axis_model.md): 5 % apart
             for a 10 ms axis, which left the true cable spring of a reference
             axis at 3.7 noise sigmas.
+        midstep_angle: a torque of the measured angle (cogging, spring,
+            unbalance) taken at the step's mean angle, the mean of the
+            angles at its two ends, instead of the angle at its start: held
+            from the start, a spring lags by half a sample, a drive error of
+            ``k w T / 2`` that the pole integrates (reference cable_spring
+            seed 2 with its true parameters: 3.10 -> 1.00 noise floors on
+            train1; docs/diagnosis.md "Stop 20").
     """
 
     substeps: int = 10
     midpoint_friction: bool = True
     split_reversals: bool = True
     exact_effect_hold: bool = True
+    midstep_angle: bool = True
 
     def __post_init__(self):
         if int(self.substeps) != self.substeps or self.substeps < 1:
@@ -112,6 +120,7 @@ class Integration:
                 ("midpoint friction", self.midpoint_friction),
                 ("reversals split", self.split_reversals),
                 ("exact hold of effects", self.exact_effect_hold),
+                ("angle torques at mid-step", self.midstep_angle),
             )
             if on
         ]
@@ -121,7 +130,7 @@ class Integration:
 
 
 #: Eq. 6 as the paper writes it.
-EQ6 = Integration(1, False, False, False)
+EQ6 = Integration(1, False, False, False, False)
 #: The model identification and diagnosis fit by default (docs/identification.md).
 DEFAULT_INTEGRATION = Integration()
 
@@ -621,12 +630,13 @@ def simulate_substeps(
     sfx, kstate, effects = _substep_effects(effects, n_rows, dt, m)
     args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
     use_side = angle_measured is not None
-    commands, torques, u_eff, extra = _effects_before_the_run(effects, u_rows, side_y, use_side, dt)
+    at_y = _torque_angle(side_y, integration.midstep_angle and use_side)
+    commands, torques, u_eff, extra = _effects_before_the_run(effects, u_rows, at_y, use_side, dt)
     if not (commands or torques):
         _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, *outputs, sfx, kstate)
     else:
         kernel_args = (table, side_y, use_side, fixed, args, outputs, sfx, kstate)
-        _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt)
+        _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at_y)
     out = _measured(reading if gyro_average else point, effects)
     true = None if out is point else point
     if single:
@@ -649,9 +659,21 @@ def _state_and_outputs(n_rows: int, n: int, omega0, angle0) -> tuple[np.ndarray,
     return w, y, point, reading, angle, regime
 
 
-def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt) -> None:
+def _torque_angle(side_y: np.ndarray, midstep: bool) -> np.ndarray:
+    """The measured angle the torques of step k see, (rows, N): the mean of
+    the angles at the step's ends (`Integration.midstep_angle`), else the
+    angle at its start; the last column (no step follows) as given."""
+    if not midstep or side_y.shape[-1] < 2:
+        return side_y
+    out = side_y.copy()
+    out[:, :-1] = 0.5 * (side_y[:, :-1] + side_y[:, 1:])
+    return out
+
+
+def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at_y) -> None:
     """Effects that need the model's own state: evaluated per sample, their
-    command and acceleration held over the sub-steps of one kernel call each."""
+    command and acceleration held over the sub-steps of one kernel call each
+    (a torque of the measured angle at `at_y`)."""
     table, side_y, use_side, fixed, args, outputs, sfx, kstate = kernel_args
     w, y = outputs[0], outputs[1]
     n_rows, n = u_rows.shape
@@ -664,7 +686,7 @@ def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt) ->
                 uk = e.command(uk)
             u_eff[:, k - 1] = uk
         if torques:
-            at = side_y[:, k - 1] if use_side else y
+            at = at_y[:, k - 1] if use_side else y
             extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
         _advance_rows(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args,
                       *outputs, 0, n_rows, sfx, kstate)  # fmt: skip
