@@ -86,3 +86,23 @@ def test_a_dead_zone_narrower_than_its_search_is_negligible():
     assert "below 0.5%" in Deadzone.negligible({"width_digits": 4.4}, 900.0)
     assert Deadzone.negligible({"width_digits": 4.6}, 900.0) == ""
     assert Effect.negligible({}, 900.0) == ""
+
+
+def test_a_gyro_error_the_angle_does_not_show_is_not_an_answer():
+    # The angle measures the gyro's error apart from any rate model: on a
+    # clean reference axis it shows none and a sensor_bias candidate is
+    # overruled; on an axis with a gyro error it shows one and is not.
+    from isp_twin.diagnosis.rounds import _gyro_error_unseen
+    from isp_twin.identification.measured import MeasuredData
+    from isp_twin.reference import design_experiment
+
+    def runs(effect):
+        exp = design_experiment(1000, effect)
+        return [
+            MeasuredData(n, r.t, r.u, r.omega, r.theta, None, DT)
+            for n, r in exp.runs.items()
+            if n != "heldout"
+        ]
+
+    assert "shows no gyro error" in _gyro_error_unseen(runs(None))
+    assert _gyro_error_unseen(runs("sensor_bias")) == ""
