@@ -630,7 +630,7 @@ def simulate_substeps(
     sfx, kstate, effects = _substep_effects(effects, n_rows, dt, m)
     args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
     use_side = angle_measured is not None
-    at_y = _torque_angle(side_y, integration.midstep_angle and use_side)
+    at_y = _torque_angle(side_y, integration.midstep_angle and use_side, effects)
     commands, torques, u_eff, extra = _effects_before_the_run(effects, u_rows, at_y, use_side, dt)
     if not (commands or torques):
         _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, *outputs, sfx, kstate)
@@ -659,11 +659,17 @@ def _state_and_outputs(n_rows: int, n: int, omega0, angle0) -> tuple[np.ndarray,
     return w, y, point, reading, angle, regime
 
 
-def _torque_angle(side_y: np.ndarray, midstep: bool) -> np.ndarray:
+def _is_torque(e: Effect) -> bool:
+    """Whether effect `e` adds an acceleration (a torque over the inertia)."""
+    return type(e).acceleration is not Effect.acceleration
+
+
+def _torque_angle(side_y: np.ndarray, midstep: bool, effects) -> np.ndarray:
     """The measured angle the torques of step k see, (rows, N): the mean of
     the angles at the step's ends (`Integration.midstep_angle`), else the
-    angle at its start; the last column (no step follows) as given."""
-    if not midstep or side_y.shape[-1] < 2:
+    angle at its start; the last column (no step follows) as given. Without
+    a torque among `effects` nothing reads it: `side_y` itself, no copy."""
+    if not midstep or side_y.shape[-1] < 2 or not any(_is_torque(e) for e in effects):
         return side_y
     out = side_y.copy()
     out[:, :-1] = 0.5 * (side_y[:, :-1] + side_y[:, 1:])
@@ -753,7 +759,7 @@ def _effects_before_the_run(effects, u_rows, side_y, use_side, dt):
     """
     n_rows, n = u_rows.shape
     commands = [e for e in effects if type(e).command is not Effect.command]
-    torques = [e for e in effects if type(e).acceleration is not Effect.acceleration]
+    torques = [e for e in effects if _is_torque(e)]
     extra = np.zeros((n_rows, n))
     u_eff = u_rows
     if commands and not set(commands) & set(torques):
