@@ -157,3 +157,30 @@ def test_an_unbalance_is_adopted_at_the_noise_with_its_parameters(tmp_path):
     got = dict(d.params_out.axes[d.axis].effects[0].params)
     assert got["amplitude_rad_s2"] == pytest.approx(true["amplitude_rad_s2"], rel=0.1)
     assert abs(math.remainder(got["phase_rad"] - true["phase_rad"], 2 * math.pi)) < 0.1
+
+
+# The alike pair: over a small travel an unbalance is a spring (sin y ~ y).
+# Cable spring seed 1 and unbalance seed 3 of the benchmark
+# (`benchmarks/identify_reference.py`) answered the other one of the pair at
+# stop 20 and shaped the alike restart (`rounds._alike_stage`): a regression
+# test, not its validation (docs/diagnosis.md "Stop 21").
+@pytest.mark.parametrize(("effect", "seed"), [("cable_spring", 1), ("unbalance", 3)])
+def test_the_alike_pair_answers_the_effect_in_the_data(tmp_path, effect, seed):
+    exp = design_experiment(seed, effect)
+    runs = {n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, 1e-3) for n, r in exp.runs.items()}
+    for n, d in runs.items():
+        save_measured(d, tmp_path / f"{n}.csv")
+    out = tmp_path / "params.yaml"
+    args = ["identify", str(tmp_path / "train1.csv"), str(tmp_path / "train2.csv")]
+    assert main([*args, "--out", str(out), "--no-report", "--quiet"]) == 0
+    params = load_parameters(out)
+    d = diagnose(
+        [runs["train1"], runs["train2"]],
+        params,
+        next(iter(params.axes)),
+        holdout=[runs["heldout"]],
+        candidates=("cable_spring", "unbalance"),
+        max_rounds=1,
+    )
+    assert d.selected_effect == effect
+    assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
