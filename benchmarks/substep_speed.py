@@ -95,7 +95,8 @@ def time_kernel(kernel, inputs, tail, repeat: int, clock=time.thread_time):
         w, a = w0.copy(), a0.copy()
         out = [np.zeros(u.shape) for _ in range(3)] + [np.zeros(u.shape, dtype=np.int64)]
         start = clock()
-        kernel(table, u, extra, y, True, -1, 1, u.shape[1], m, dt, True, True, w, a, *out, *tail)
+        kernel(table, u, extra, y, True, -1, 1, u.shape[1], m, dt, True, True, True, w, a, *out,
+               *tail)  # fmt: skip
         times.append(clock() - start)
     return min(times[1:]), [*out, w, a]
 

@@ -3,7 +3,9 @@ parallel (`isp_twin.model.substep_model` at commit 9cc08c3): one row after the o
 the obvious loop. `tests/test_substep_model.py` checks the fast kernel against
 it bit for bit. Not cached: compiled once per test session. The side of
 angle 0 follows the direction (`isp_twin.model.friction.side_of`, the
-boundary rule added after 9cc08c3)."""
+boundary rule added after 9cc08c3). With `by_drive` the gain at rest is
+the gain of the regime the total drive breaks towards
+(`Integration.rest_drive_gain`, added at stop 21)."""
 
 from numba import njit
 
@@ -16,6 +18,20 @@ def _regime(angle, direction, fixed_side):
     (the side of angle 0 by the direction: the law since the boundary rule)."""
     side = fixed_side if fixed_side >= 0 else law.side_of(angle, direction)
     return law.regime_of(side, direction)
+
+
+@njit(nogil=True)
+def _rest_gain_regime(table, i, ys, uk, ek, fixed_side, by_drive):
+    """At rest: the regime whose gain drives the step, and whether it breaks
+    free at all (decided here only with `by_drive`; else by the caller)."""
+    if by_drive:
+        for direction in (1.0, -1.0):
+            r = _regime(ys, direction, fixed_side)
+            d = table[i, r, 1] * uk + table[i, r, 5] * ek
+            if direction * d > table[i, r, 2]:
+                return r, True
+        return _regime(ys, uk, fixed_side), False
+    return _regime(ys, uk, fixed_side), True
 
 
 @njit(nogil=True)
@@ -32,6 +48,7 @@ def advance_row_by_row(
     dt,
     mid,
     split,
+    by_drive,
     w_state,
     y_state,
     point,
@@ -86,21 +103,22 @@ def advance_row_by_row(
                         w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
-                            r0 = _regime(ys, uk, fixed_side)
+                            r0, free = _rest_gain_regime(table, i, ys, uk, ek, fixed_side, by_drive)
                             d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
                             idx = _regime(ys, d, fixed_side)
                             ts2 = table[i, idx, 2]
-                            if abs(d) > ts2:
+                            if free and abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
                     w = w_new
                 else:
-                    # At rest the command's sign picks the gain and the total
-                    # drive's sign the breakaway level (as `axis_model.simulate`).
-                    r0 = _regime(ys, uk, fixed_side)
+                    # At rest the command's sign (or with `by_drive` the
+                    # breakaway's direction) picks the gain and the total
+                    # drive's sign the breakaway level.
+                    r0, free = _rest_gain_regime(table, i, ys, uk, ek, fixed_side, by_drive)
                     d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
                     idx = _regime(ys, d, fixed_side)
                     ts = table[i, idx, 2]
-                    if abs(d) > ts:
+                    if free and abs(d) > ts:
                         w = d - law.stiction(d, ts)
                     else:
                         w = 0.0

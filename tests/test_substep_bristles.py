@@ -56,7 +56,7 @@ def _kernel(params: RateParams, u, w0, z0, drive, zmax, n):
     z[:, 0] = kstate[:, 0]
     for k in range(1, n):
         _advance_rows(table, u, extra, np.zeros((1, 1)), False, -1, k, k + 1, M, DT, True,
-                      True, w, y, *out, 0, rows, sfx, kstate)  # fmt: skip
+                      True, True, w, y, *out, 0, rows, sfx, kstate)  # fmt: skip
         z[:, k] = kstate[:, 0]
     return out[0], z
 

@@ -179,6 +179,12 @@ def _kernel_case(m: int, side: str, n_sets: int = 7, seed: int = 11):
     )
     us = np.ascontiguousarray(np.tile(u, (n_rows, 1)) * rng.uniform(0.6, 1.2, (n_rows, 1)))
     extra = 2e-3 * rng.standard_normal((n_rows, N))
+    # Every third row a slow torque as strong as the command (a spring or an
+    # unbalance): it opposes the command at some rests, where the rest rule
+    # (`Integration.rest_drive_gain`) decides the gain.
+    strong = np.arange(n_rows) % 3 == 2
+    level = 0.8 * 900 * table[strong, :, 1].mean(axis=1) / table[strong, :, 5].mean(axis=1)
+    extra[strong] += level[:, None] * np.sin(2 * np.pi * 0.37 * np.arange(N) * DT)
     side_y = np.ascontiguousarray(np.tile(angle, (n_rows, 1)) + rng.normal(0, 1e-3, (n_rows, 1)))
     w0 = np.where(np.arange(n_rows) % 2 == 0, 0.0, rng.normal(0, 0.05, n_rows))
     y0 = side_y[:, 0].copy()
@@ -187,23 +193,24 @@ def _kernel_case(m: int, side: str, n_sets: int = 7, seed: int = 11):
     return table, us, extra, side_y, use_side, fixed, w0, y0
 
 
-def _run_kernel(kernel, case, m, mid, split, tail=(), per_sample=False):
+def _run_kernel(kernel, case, m, mid, split, by_drive, tail=(), per_sample=False):
     table, u, extra, side_y, use_side, fixed, w0, y0 = case
     w, y = w0.copy(), y0.copy()
     out = [np.zeros(u.shape) for _ in range(3)] + [np.zeros(u.shape, dtype=np.int64)]
     spans = [(k, k + 1) for k in range(1, N)] if per_sample else [(1, N)]
     for lo, hi in spans:
-        kernel(table, u, extra, side_y, use_side, fixed, lo, hi, m, DT, mid, split, w, y,
-               *out, *tail)  # fmt: skip
+        kernel(table, u, extra, side_y, use_side, fixed, lo, hi, m, DT, mid, split, by_drive, w,
+               y, *out, *tail)  # fmt: skip
     return [*out, w, y]
 
 
 @pytest.mark.parametrize(
-    "m, mid, split, side",
-    [(10, True, True, "taught"), (10, True, True, "own"), (1, False, False, "taught"),
-     (3, True, False, "R"), (7, False, True, "L")],
+    "m, mid, split, side, by_drive",
+    [(10, True, True, "taught", True), (10, True, True, "own", False),
+     (1, False, False, "taught", False), (3, True, False, "R", True), (7, False, True, "L", True),
+     (10, True, True, "taught", False)],
 )  # fmt: skip
-def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(m, mid, split, side):
+def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(m, mid, split, side, by_drive):
     # The interleaved rows and the parallel blocks change only the order in
     # which independent rows are computed: every number must be the same.
     from substep_kernel_reference import advance_row_by_row
@@ -212,16 +219,20 @@ def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(m, mid, split, side)
 
     case = _kernel_case(m, side)
     n_rows = case[1].shape[0]
-    ref = _run_kernel(advance_row_by_row, case, m, mid, split)
+    ref = _run_kernel(advance_row_by_row, case, m, mid, split, by_drive)
     assert np.count_nonzero(ref[0] == 0.0) > 100  # sticks were exercised
     assert len(np.unique(ref[3][:, 1:])) == (4 if side in ("taught", "own") else 2)
+    # The extra drive opposes the command at some breakaways: the rest rule matters.
+    other = _run_kernel(advance_row_by_row, case, m, mid, split, not by_drive)
+    assert not np.array_equal(ref[0], other[0])
+    args = (case, m, mid, split, by_drive)
     runs = {
-        "serial": _run_kernel(_advance_rows, case, m, mid, split, (0, n_rows)),
-        "per sample": _run_kernel(_advance_rows, case, m, mid, split, (0, n_rows), True),
+        "serial": _run_kernel(_advance_rows, *args, (0, n_rows)),
+        "per sample": _run_kernel(_advance_rows, *args, (0, n_rows), True),
     }
     for blocks in (1, 2, 3, n_rows):
-        runs[f"{blocks} blocks"] = _run_kernel(_advance_blocks, case, m, mid, split, (blocks,))
-    runs["2 blocks again"] = _run_kernel(_advance_blocks, case, m, mid, split, (2,))
+        runs[f"{blocks} blocks"] = _run_kernel(_advance_blocks, *args, (blocks,))
+    runs["2 blocks again"] = _run_kernel(_advance_blocks, *args, (2,))
     for name, got in runs.items():
         for a, b in zip(ref, got):
             assert np.array_equal(a, b), name
@@ -295,8 +306,9 @@ def _per_sample_loop(params, u, angle, effects, integration, omega0):
         at = 0.5 * (angle[:, k - 1] + angle[:, k]) if integration.midstep_angle else angle[:, k - 1]
         extra[:, k - 1] = sum(e.acceleration(at, w) for e in effects) * DT
         _advance_rows(table, u_eff, extra, angle, True, -1, k, k + 1, m, DT,
-                      integration.midpoint_friction, integration.split_reversals, w, y, point,
-                      reading, ang, regime, 0, n_rows)  # fmt: skip
+                      integration.midpoint_friction, integration.split_reversals,
+                      integration.rest_drive_gain, w, y, point, reading, ang, regime, 0,
+                      n_rows)  # fmt: skip
     return point, ang, regime
 
 
@@ -327,7 +339,11 @@ def test_effects_evaluated_before_the_run_give_the_per_sample_numbers(names):
                 make_batched(n, specs[n], DT) for n in names]  # fmt: skip
 
     kw = {"omega0": omega0, "angle0": angle_rows[:, 0], "angle_measured": angle_rows}
-    for integration in (Integration(), Integration(midstep_angle=False)):
+    for integration in (
+        Integration(),
+        Integration(midstep_angle=False),
+        Integration(rest_drive_gain=False),
+    ):
         got = simulate_substeps(params, u, DT, effects=effects(), integration=integration, **kw)
         want = _per_sample_loop(
             params, np.tile(u, (n_sets, 1)), angle_rows, effects(), integration, omega0

@@ -42,7 +42,7 @@ def _ring(params: RateParams, mode: dict, y0: float, n: int):
     y[0] = y0
     for k in range(1, n):
         _advance_rows(table, zeros, zeros, np.zeros((1, 1)), False, -1, k, k + 1, M, DT, True,
-                      True, w, ang, *out, 0, 1, sfx, kstate)  # fmt: skip
+                      True, True, w, ang, *out, 0, 1, sfx, kstate)  # fmt: skip
         y[k], yd[k] = kstate[0, 1], kstate[0, 2]
     gyro = out[0][0]  # the payload's rate w1 + (1 + r) y'
     return gyro - (1.0 + cols["payload_ratio"]) * yd, y

@@ -175,13 +175,7 @@ class Diagnosis:
                 "gyro_average": self.timing.gyro_average,
                 "side_shift_steps": self.timing.side_shift,
             },
-            "integration": {
-                "substeps_per_sample": self.integration.substeps,
-                "midpoint_friction": self.integration.midpoint_friction,
-                "split_reversals": self.integration.split_reversals,
-                "exact_effect_hold": self.integration.exact_effect_hold,
-                "midstep_angle": self.integration.midstep_angle,
-            },
+            "integration": self.integration.to_json(),
             "units": {
                 "rmse_before": "rad/s",
                 "rmse_baseline_refit": "rad/s",

@@ -57,6 +57,7 @@ def fitted_with(integration: Integration, timing: Timing) -> FittedWith:
         gyro_average=bool(timing.gyro_average),
         side_shift_steps=float(timing.side_shift),
         midstep_angle=bool(integration.midstep_angle),
+        rest_drive_gain=bool(integration.rest_drive_gain),
     )
 
 
@@ -68,6 +69,7 @@ def recorded_model(record: FittedWith) -> tuple[Integration, Timing]:
         record.split_reversals,
         record.exact_effect_hold,
         record.midstep_angle,
+        record.rest_drive_gain,
     )
     return integration, Timing(record.side_shift_steps, record.gyro_average)
 

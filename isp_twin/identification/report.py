@@ -147,13 +147,7 @@ def result_json(
             "gyro_average": result.timing.gyro_average,
             "side_shift_steps": result.timing.side_shift,
         },
-        "integration": {
-            "substeps_per_sample": result.integration.substeps,
-            "midpoint_friction": result.integration.midpoint_friction,
-            "split_reversals": result.integration.split_reversals,
-            "exact_effect_hold": result.integration.exact_effect_hold,
-            "midstep_angle": result.integration.midstep_angle,
-        },
+        "integration": result.integration.to_json(),
     }
 
 

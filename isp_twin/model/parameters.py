@@ -114,6 +114,9 @@ class FittedWith:
         midstep_angle: torques of the measured angle taken at the step's
             mean angle (optional in a file: absent means false, the model
             files written before it was fitted with).
+        rest_drive_gain: at rest the motor gain of the regime the total
+            drive breaks towards, not of the command's sign (optional as
+            ``midstep_angle``: absent means false).
         gyro_average: the gyro reads the rate averaged over the sample (else
             the rate at the sample instant).
         side_shift_steps: the half-plane is read from the angle at step start
@@ -127,6 +130,7 @@ class FittedWith:
     gyro_average: bool
     side_shift_steps: float
     midstep_angle: bool = False
+    rest_drive_gain: bool = False
 
 
 #: Keys of a ``fitted_with:`` block, in `FittedWith` order.
@@ -138,7 +142,12 @@ FITTED_WITH_KEYS: tuple[str, ...] = (
     "gyro_average",
     "side_shift_steps",
     "midstep_angle",
+    "rest_drive_gain",
 )
+#: Keys a ``fitted_with:`` block may leave out: options added after files
+#: were written without them; absent means false, the rule those files were
+#: fitted with.
+FITTED_WITH_OPTIONAL: tuple[str, ...] = ("midstep_angle", "rest_drive_gain")
 #: Largest sub-step count a file or ``--substeps`` may ask for.
 MAX_SUBSTEPS = 100
 
@@ -360,7 +369,8 @@ def _parse_effects(raw, path, keys) -> tuple[EffectSpec, ...]:
 
 
 def _parse_fitted_with(raw, path, keys) -> FittedWith:
-    _check_keys(raw, FITTED_WITH_KEYS, path, keys, required=FITTED_WITH_KEYS[:6])
+    required = tuple(k for k in FITTED_WITH_KEYS if k not in FITTED_WITH_OPTIONAL)
+    _check_keys(raw, FITTED_WITH_KEYS, path, keys, required=required)
     m = raw["substeps"]
     if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= MAX_SUBSTEPS:
         raise ParameterError(
@@ -374,18 +384,19 @@ def _parse_fitted_with(raw, path, keys) -> FittedWith:
                 f"{_where(path, keys + [k])}: expected true or false, got {raw[k]!r}"
             )
         flags[k] = raw[k]
-    midstep = raw.get("midstep_angle", False)
-    if not isinstance(midstep, bool):
-        raise ParameterError(
-            f"{_where(path, keys + ['midstep_angle'])}: expected true or false, got {midstep!r}"
-        )
+    for k in FITTED_WITH_OPTIONAL:
+        flags[k] = raw.get(k, False)
+        if not isinstance(flags[k], bool):
+            raise ParameterError(
+                f"{_where(path, keys + [k])}: expected true or false, got {flags[k]!r}"
+            )
     shift = _number(raw["side_shift_steps"], path, keys + ["side_shift_steps"])
     if not 0.0 <= shift < 1.0:
         raise ParameterError(
             f"{_where(path, keys + ['side_shift_steps'])}: must lie in [0, 1) (a fraction of a "
             f"step), got {shift}"
         )
-    return FittedWith(substeps=m, side_shift_steps=shift, midstep_angle=midstep, **flags)
+    return FittedWith(substeps=m, side_shift_steps=shift, **flags)
 
 
 def _parse_axis(raw, path, keys) -> AxisParams:
@@ -481,7 +492,7 @@ def parameters_to_dict(params: ParameterSet) -> dict:
                 "substeps": int(f.substeps),
                 **{k: bool(getattr(f, k)) for k in FITTED_WITH_KEYS[1:5]},
                 "side_shift_steps": float(f.side_shift_steps),
-                "midstep_angle": bool(f.midstep_angle),
+                **{k: bool(getattr(f, k)) for k in FITTED_WITH_OPTIONAL},
             }
         axes[name] = out
     return {

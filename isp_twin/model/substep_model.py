@@ -99,6 +99,14 @@ class Integration:
             ``k w T / 2`` that the pole integrates (reference cable_spring
             seed 2 with its true parameters: 3.10 -> 1.00 noise floors on
             train1; docs/diagnosis.md "Stop 20").
+        rest_drive_gain: at rest, the motor gain of the regime the total
+            drive breaks towards (+ where ``g+ u + e`` passes Ts+, else -
+            where ``g- u + e`` passes -Ts-), as a physical axis does,
+            instead of the gain of the command's sign (Eq. 6 and the twin,
+            `axis_model.simulate`). The two differ only where an effect's
+            torque e opposes the command (reference cable_spring seed 3
+            with its true parameters: 3.91 -> 1.13 noise floors on train2;
+            docs/diagnosis.md "Stop 21").
     """
 
     substeps: int = 10
@@ -106,10 +114,26 @@ class Integration:
     split_reversals: bool = True
     exact_effect_hold: bool = True
     midstep_angle: bool = True
+    rest_drive_gain: bool = True
 
     def __post_init__(self):
         if int(self.substeps) != self.substeps or self.substeps < 1:
             raise ParameterError(f"substeps must be an integer >= 1, got {self.substeps}")
+
+    def kernel_flags(self) -> tuple[bool, bool, bool]:
+        """The sub-step kernel's switches, in its argument order (`_advance`)."""
+        return self.midpoint_friction, self.split_reversals, self.rest_drive_gain
+
+    def to_json(self) -> dict:
+        """The ``integration`` block of identify's and diagnose's JSON records."""
+        return {
+            "substeps_per_sample": self.substeps,
+            "midpoint_friction": self.midpoint_friction,
+            "split_reversals": self.split_reversals,
+            "exact_effect_hold": self.exact_effect_hold,
+            "midstep_angle": self.midstep_angle,
+            "rest_drive_gain": self.rest_drive_gain,
+        }
 
     def describe(self) -> str:
         if self == EQ6:
@@ -121,6 +145,7 @@ class Integration:
                 ("reversals split", self.split_reversals),
                 ("exact hold of effects", self.exact_effect_hold),
                 ("angle torques at mid-step", self.midstep_angle),
+                ("rest gain of the drive", self.rest_drive_gain),
             )
             if on
         ]
@@ -130,7 +155,7 @@ class Integration:
 
 
 #: Eq. 6 as the paper writes it.
-EQ6 = Integration(1, False, False, False, False)
+EQ6 = Integration(1, False, False, False, False, False)
 #: The model identification and diagnosis fit by default (docs/identification.md).
 DEFAULT_INTEGRATION = Integration()
 
@@ -182,6 +207,27 @@ def _regime_at(angle, direction, fixed_side):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def _rest_regime(table, i, a, uk, ek, fixed_side, by_drive):  # pragma: no cover - compiled
+    """At rest, the regime whose motor gain drives the step, or -1 where the
+    axis stays stuck whatever the command's sign says (`by_drive` only).
+
+    Without `by_drive` the command's sign picks it (`axis_model.simulate`).
+    With it, the axis breaks towards + where the + regime's drive ``g+ u +
+    f e`` passes Ts+, else towards - where ``g- u + f e`` passes -Ts-
+    (`Integration.rest_drive_gain`); ek is the extra drive in effect units.
+    """
+    if not by_drive:
+        return _regime_at(a, uk, fixed_side)
+    rp = _regime_at(a, 1.0, fixed_side)
+    if table[i, rp, 1] * uk + table[i, rp, 5] * ek > table[i, rp, 2]:
+        return rp
+    rm = _regime_at(a, -1.0, fixed_side)
+    if table[i, rm, 1] * uk + table[i, rm, 5] * ek < -table[i, rm, 2]:
+        return rm
+    return -1
+
+
+@njit(cache=True, nogil=True)
 def _payload_clamped(coef, yp, ydp):  # pragma: no cover - compiled
     """The payload ringing over a sub-step with the motor side stuck:
     ``(1 + r) y'' + 2 zeta wn y' + wn^2 y = 0`` (the clamped frequency)."""
@@ -224,6 +270,7 @@ def _advance_group(
     dt,
     mid,
     split,
+    by_drive,
     w_state,
     y_state,
     point,
@@ -339,11 +386,14 @@ def _advance_group(
                         w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
-                            r0 = _regime_at(a, uk[b], fixed_side)
+                            r0 = _rest_regime(table, i, a, uk[b], ek[b], fixed_side, by_drive)
+                            free = r0 >= 0
+                            if not free:
+                                r0 = _regime_at(a, uk[b], fixed_side)
                             d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
                             ix = _regime_at(a, d, fixed_side)
                             ts2 = table[i, ix, 2]
-                            if abs(d) > ts2:
+                            if free and abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
                                 if bristles:
                                     w_new = _break_through_bristles(
@@ -355,17 +405,23 @@ def _advance_group(
                         yp[b], ydp[b] = yn, ydn
                     wb = w_new
                 else:
-                    # At rest the command's sign picks the gain and the total
-                    # drive's sign the breakaway level (as `axis_model.simulate`).
-                    r0 = _regime_at(a, uk[b], fixed_side)
-                    d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
-                    dd = d  # the motor side's drive: the payload's spring pulls on it
+                    # At rest the gain of the regime a breakaway takes
+                    # (`_rest_regime`) and the total drive's sign the
+                    # breakaway level.
+                    spring = 0.0  # the payload's spring pulls on the motor side
                     if payload:
                         spring = sfx[i, 3] * yp[b] + sfx[i, 4] * ydp[b]
+                    r0 = _rest_regime(table, i, a, uk[b], ek[b] + dt * spring, fixed_side, by_drive)
+                    free = r0 >= 0
+                    if not free:
+                        r0 = _regime_at(a, uk[b], fixed_side)
+                    d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
+                    dd = d  # the motor side's drive
+                    if payload:
                         dd = d + table[i, r0, 5] * dt * spring
                     ix = _regime_at(a, dd, fixed_side)
                     ts = table[i, ix, 2]
-                    if abs(dd) > ts:
+                    if free and abs(dd) > ts:
                         wb = d - law.stiction(dd, ts)
                         if bristles:
                             wb = _break_through_bristles(
@@ -425,6 +481,7 @@ def _advance_rows(
     dt,
     mid,
     split,
+    by_drive,
     w_state,
     y_state,
     point,
@@ -450,7 +507,7 @@ def _advance_rows(
     for g in range(r_lo, r_hi, GROUP_ROWS):
         g_hi = min(g + GROUP_ROWS, r_hi)
         _advance_group(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid,
-                       split, w_state, y_state, point, reading, angle, regime, g, g_hi, frac,
+                       split, by_drive, w_state, y_state, point, reading, angle, regime, g, g_hi, frac,
                        scratch, idx, sfx_, kstate_)  # fmt: skip
 
 
@@ -468,6 +525,7 @@ def _advance_blocks(
     dt,
     mid,
     split,
+    by_drive,
     w_state,
     y_state,
     point,
@@ -483,7 +541,7 @@ def _advance_blocks(
     for c in prange(n_blocks):
         r_lo, r_hi = c * n_rows // n_blocks, (c + 1) * n_rows // n_blocks
         _advance_rows(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
-                      w_state, y_state, point, reading, angle, regime, r_lo, r_hi, sfx,
+                      by_drive, w_state, y_state, point, reading, angle, regime, r_lo, r_hi, sfx,
                       kstate)  # fmt: skip
 
 
@@ -494,13 +552,13 @@ PARALLEL_MIN_SUBSTEPS = 200_000
 
 
 def _advance(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
-             w_state, y_state, point, reading, angle, regime, sfx, kstate):  # fmt: skip
+             by_drive, w_state, y_state, point, reading, angle, regime, sfx, kstate):  # fmt: skip
     """Advance every row from sample k_lo-1 to k_hi-1 (`_advance_rows`), on all
     of numba's threads when the call is large enough; the same numbers either way."""
     n_rows = u.shape[0]
     blocks = min(numba.get_num_threads(), n_rows)
     args = (table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
-            w_state, y_state, point, reading, angle, regime)  # fmt: skip
+            by_drive, w_state, y_state, point, reading, angle, regime)  # fmt: skip
     if blocks > 1 and n_rows * (k_hi - k_lo) * m >= PARALLEL_MIN_SUBSTEPS:
         _advance_blocks(*args, blocks, sfx, kstate)
     else:
@@ -628,7 +686,7 @@ def simulate_substeps(
     outputs = _state_and_outputs(n_rows, n, omega0, angle0)
     _, _, point, reading, angle, regime = outputs
     sfx, kstate, effects = _substep_effects(effects, n_rows, dt, m)
-    args = (m, float(dt), integration.midpoint_friction, integration.split_reversals)
+    args = (m, float(dt), *integration.kernel_flags())
     use_side = angle_measured is not None
     at_y = _torque_angle(side_y, integration.midstep_angle and use_side, effects)
     commands, torques, u_eff, extra = _effects_before_the_run(effects, u_rows, at_y, use_side, dt)
