@@ -106,3 +106,48 @@ def test_a_gyro_error_the_angle_does_not_show_is_not_an_answer():
 
     assert "shows no gyro error" in _gyro_error_unseen(runs(None))
     assert _gyro_error_unseen(runs("sensor_bias")) == ""
+
+
+def test_a_cogging_period_longer_than_the_travel_is_undetermined():
+    from isp_twin.model.effects.cogging import Cogging
+
+    assert "longer than the travel" in Cogging.undetermined({**COGGING, "period_rad": 0.5}, 0.4)
+    assert Cogging.undetermined({**COGGING, "period_rad": 0.3}, 0.4) == ""
+    assert Effect.undetermined({}, 0.4) == ""
+
+
+def test_a_cogging_seen_over_less_than_one_period_is_overruled():
+    # Against a worse base both win held out; the one whose period is longer
+    # than the runs' travel (a smooth torque of the angle, which an unbalance
+    # or a spring makes as well) is overruled first, the ripple is kept.
+    rate = load_parameters(default_parameters_path()).axis("inner_az").rate_params()
+    rng = np.random.default_rng(3)
+    truth = EffectSpec("cogging", COGGING)
+    runs = [
+        make_run(f"h{i}", rate, excitation(rng, 1500, DT), DT, rng, [truth], angle0=0.1)
+        for i in range(2)
+    ]
+    data = _Held(stack_runs(runs, integration=EQ6))
+    travel = float(np.ptp(data.train.angle[data.train.mask]))
+    assert COGGING["period_rad"] < travel
+    x_true = rate.to_vector()
+    x_base = x_true.copy()
+    x_base[2::5] *= 1.25  # static levels
+    base = _fit(BASELINE, {}, {}, x_base, 0.0)
+    smooth = {**COGGING, "period_rad": 2.0 * travel}
+    fits = {
+        "cogging": _fit("cogging", COGGING, {k: 0.01 for k in COGGING}, x_true, -60.0),
+    }
+    held = data.held_residuals([base, *fits.values()])
+    st = _RoundState(
+        base, fits, dict(zip(fits, held[1:])), held[0], noise_floor(held[0]), frozenset()
+    )
+    kept = {v.name: v for v in _effect_itself(data, st, [st.judge("cogging")])}
+    assert kept["cogging"].significant
+    st.fits["cogging"] = _fit("cogging", smooth, {k: 0.01 for k in smooth}, x_true, -60.0)
+    st.held_of["cogging"] = data.held_residuals([st.fits["cogging"]])[0]
+    verdict = st.judge("cogging")
+    assert verdict.significant  # against the worse base it wins held out
+    after = {v.name: v for v in _effect_itself(data, st, [verdict])}
+    assert not after["cogging"].significant
+    assert "longer than the travel" in after["cogging"].reason

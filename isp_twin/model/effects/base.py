@@ -97,3 +97,10 @@ class Effect:
         """Why these parameters are too small to be this effect on runs whose
         largest |command| is `u_peak`, or "" (the default: never)."""
         return ""
+
+    @classmethod
+    def undetermined(cls, params: Mapping[str, float], travel_rad: float) -> str:
+        """Why runs that travel `travel_rad` [rad] (largest minus smallest
+        angle) cannot tell these parameters as this effect from another, or
+        "" (the default: they can)."""
+        return ""

@@ -41,6 +41,20 @@ class Cogging(Effect):
         )
 
     @classmethod
+    def undetermined(cls, params, travel_rad: float) -> str:
+        """A period longer than the travel: the runs see less than one period,
+        a smooth torque of the angle that an unbalance or a spring makes as
+        well, not a ripple (benchmark unbalance seed 6: a cogging of period
+        3.08 rad over a 0.56 rad travel; docs/diagnosis.md "Stop 21")."""
+        period = float(params["period_rad"])
+        if period > travel_rad:
+            return (
+                f"a cogging period of {period:.3g} rad is longer than the travel "
+                f"({travel_rad:.3g} rad): less than one period, not a ripple"
+            )
+        return ""
+
+    @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
         """The period is searched: the three best peaks of a least-squares
         periodogram of the residual's acceleration against angle."""
