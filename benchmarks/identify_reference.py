@@ -248,6 +248,7 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
     )
     rec["diagnose_heldout_over_noise"] = diag["rmse_after"] / (sigma * DEG)
     rec["diagnose_tentative"] = list(diag.get("tentative_effects", []))
+    rec["diagnose_equivalent"] = list(diag.get("equivalent_effects", []))
     if case == "torque_offset":
         rec.update(offset_equivalence(truth, diag, rec["diagnose_heldout_over_noise"]))
     if case != "clean" and selected == case:
@@ -377,12 +378,18 @@ def table(records: list[dict], case: str) -> str:
 
 
 def _with_tentative(rec: dict, workdir: Path) -> dict:
-    """The record with ``diagnose_tentative`` (read from its diagnose.json when
-    the record predates that field)."""
-    if "diagnose_tentative" not in rec:
-        path = workdir / rec["case"] / f"seed{rec['seed']}" / "diagnose.json"
-        if path.exists():
-            rec["diagnose_tentative"] = json.loads(path.read_text()).get("tentative_effects", [])
+    """The record with ``diagnose_tentative`` and ``diagnose_equivalent`` (read
+    from its diagnose.json when the record predates those fields)."""
+    fields = {
+        "diagnose_tentative": "tentative_effects",
+        "diagnose_equivalent": "equivalent_effects",
+    }
+    missing = [k for k in fields if k not in rec]
+    path = workdir / rec["case"] / f"seed{rec['seed']}" / "diagnose.json"
+    if missing and path.exists():
+        diag = json.loads(path.read_text())
+        for k in missing:
+            rec[k] = diag.get(fields[k], [])
     return rec
 
 
@@ -440,6 +447,18 @@ def target_lines(records: list[dict], case: str) -> list[str]:
             f"{case}: right effect and held-out after <= {lim}x noise",
         ),
     ]
+    if any(r.get("diagnose_equivalent") for r in records):
+        lines.append(
+            _rate(
+                records,
+                lambda r: (
+                    r.get("diagnose_answer") == "right" or case in r.get("diagnose_equivalent", [])
+                ),
+                0.90,
+                f"{case}: right effect selected, or its alike partner with {case} listed as "
+                "equivalent (the data cannot tell them apart: docs/diagnosis.md 'Stop 21')",
+            )
+        )
     if case in UNDETERMINED:
         lines.append(
             _rate(
@@ -627,7 +646,7 @@ def main(argv: list[str] | None = None) -> int:
             "SELECT record FROM result WHERE case_name = ? AND seed < ? ORDER BY seed",
             (case, args.axes),
         ).fetchall()
-        records = [json.loads(r[0]) for r in rows]
+        records = [_with_tentative(json.loads(r[0]), workdir) for r in rows]
         every.extend(records)
         for line in target_lines(records, case):
             print("  " + line)

@@ -21,7 +21,7 @@ from isp_twin.diagnosis.result import RoundResult, rms_of
 from isp_twin.diagnosis.selection import MIN_GAIN, Verdict, judge, select
 from isp_twin.errors import ParameterError
 from isp_twin.estimation.information import parameter_penalty
-from isp_twin.estimation.simulation_error import predict_one, residuals_many
+from isp_twin.estimation.simulation_error import RunStack, predict_one, residuals_many
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.equation_error import (
     JOINT_FORMS,
@@ -452,9 +452,11 @@ def _joint_starts(
     return out
 
 
-def equivalent_effects(rnd: RoundResult) -> tuple[str, ...]:
+def equivalent_effects(rnd: RoundResult, train: RunStack) -> tuple[str, ...]:
     """Effects alike the selected one (`ALIKE`) that are significant too and
-    within the selection's tie margin held out (`selection.select`)."""
+    within the selection's tie margin held out (`selection.select`), or that
+    make the selected effect's torque over the training angles to within what
+    the rate can show (`_indistinguishable`)."""
     partners = {b for a, b in ALIKE if a == rnd.selected} | {
         a for a, b in ALIKE if b == rnd.selected
     }
@@ -465,8 +467,31 @@ def equivalent_effects(rnd: RoundResult) -> tuple[str, ...]:
         for v in rnd.verdicts
         if v.name in partners
         and v.significant
-        and v.holdout_rmse**2 <= chosen.holdout_rmse**2 + margin
+        and (
+            v.holdout_rmse**2 <= chosen.holdout_rmse**2 + margin
+            or _indistinguishable(train, rnd.fits[rnd.selected], v.name, rnd.noise_floor)
+        )
     )
+
+
+def _indistinguishable(train: RunStack, fit: CandidateFit, other: str, floor: float) -> bool:
+    """Whether effect `other`, matched to `fit`'s effect over the training
+    angles (`_matched_start`), differs from it by less than the rate can show:
+    half the span of the two accelerations' difference (a constant part is a
+    shift of the friction levels, docs/diagnosis.md "What a cable spring's
+    data determine") held at the slowest regime's pole a, ``dev T / (1 - a)``
+    (the steady rate it moves at most), below the noise floor.
+
+    An unbalance whose phase puts the travel on the straight part of its sine
+    is a spring: benchmark cable spring seed 18 (a 13 deg travel) answered an
+    unbalance of phase 3.11 rad at 1.13 noise floors, its spring refit at 1.59
+    (docs/diagnosis.md "Stop 21")."""
+    angle, rate = train.angle[train.mask], train.omega[train.mask]
+    mine = effect_class(fit.name)(dict(fit.params)).acceleration(angle, rate)
+    theirs = effect_class(other)(_matched_start(train, fit, other)).acceleration(angle, rate)
+    dev = 0.5 * float(np.ptp(np.asarray(mine) - np.asarray(theirs)))
+    pole = float(np.max(RateParams.from_vector(fit.rate_vector).pole))
+    return dev * train.dt / (1.0 - pole) < floor
 
 
 def _leaders(verdicts, failed, starts, top: int) -> list[str]:

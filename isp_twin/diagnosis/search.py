@@ -282,7 +282,7 @@ def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
     """The final model: tentative effects set aside, the plain refit judged
     against the given parameters, the parameter set updated."""
     rounds, accepted, tentative = _set_aside_tentative(rounds)
-    equivalent = equivalent_effects(rounds[0]) if accepted else ()
+    equivalent = equivalent_effects(rounds[0], data.train) if accepted else ()
     train, ax = data.train, data.ax
     x_file, given_fixed = ax.rate_params().to_vector(), tuple(ax.effects)
     m = train.n_samples

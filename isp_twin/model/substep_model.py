@@ -33,14 +33,17 @@ of Eq. 5 is made at every sub-step. With ``midpoint_friction`` the sliding frict
 of the sub-step's start rate and a predicted end rate (second order in the
 sub-step); with ``split_reversals`` a sub-step in which the rate reaches zero
 ends there and the rest of it is spent on the stick/breakaway decision
-(a Karnopp band that cannot swallow part of a sub-step of motion). The gyro
+(a Karnopp band that cannot swallow part of a sub-step of motion). At rest
+the motor gain is the command's sign's regime's (Eq. 6), or with
+``rest_drive_gain`` the regime the total drive breaks towards: they differ
+only where an effect's torque opposes the command (`_rest_regime`). The gyro
 reading is the rate at the sample instant, or its mean over the sample's
 sub-steps (trapezoid; with m = 1 the mean of both ends, `gyro_reading`).
 The half-plane of sub-step j of the step into sample k is read from the given
 angle at ``k - 1 + j/m`` (linear interpolation), or from the model's own
 angle ``y += (T/m) w``.
 
-`EQ6` (m = 1, no midpoint friction, no split) is Eq. 6 exactly as
+`EQ6` (m = 1, every option off) is Eq. 6 exactly as
 `isp_twin.model.axis_model.simulate` computes it, up to the last bit of ``exp``
 (numpy's vectorized exp and the C library's differ by one ulp on a few
 per cent of arguments; with alpha = 0 the two agree bit for bit,
