@@ -134,8 +134,11 @@ def test_the_exact_hold_brings_a_fast_axis_strength_closer_to_the_truth(name):
     assert err[1] < err[0]
 
 
-def test_an_unbalance_is_adopted_at_the_noise_with_its_parameters(tmp_path):
-    exp = design_experiment(1000, "unbalance")
+def _identified_then_diagnosed(tmp_path, seed: int, effect: str, candidates):
+    """A reference axis: `isp-twin identify` on its two training runs as a
+    user runs it, then `diagnose` (one round, `candidates`) with the held-out
+    run; (the experiment, the diagnosis)."""
+    exp = design_experiment(seed, effect)
     runs = {n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, 1e-3) for n, r in exp.runs.items()}
     for n, d in runs.items():
         save_measured(d, tmp_path / f"{n}.csv")
@@ -148,9 +151,15 @@ def test_an_unbalance_is_adopted_at_the_noise_with_its_parameters(tmp_path):
         params,
         next(iter(params.axes)),
         holdout=[runs["heldout"]],
-        candidates=("cogging", "unbalance", "cable_spring"),
+        candidates=candidates,
         max_rounds=1,
     )
+    return exp, d
+
+
+def test_an_unbalance_is_adopted_at_the_noise_with_its_parameters(tmp_path):
+    torques = ("cogging", "unbalance", "cable_spring")
+    exp, d = _identified_then_diagnosed(tmp_path, 1000, "unbalance", torques)
     true = exp.truth()["effects"][0]["params"]
     assert d.selected_effect == "unbalance"
     assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
@@ -170,21 +179,6 @@ def test_an_unbalance_is_adopted_at_the_noise_with_its_parameters(tmp_path):
     ("effect", "seed"), [("cable_spring", 1), ("unbalance", 3), ("cable_spring", 7)]
 )
 def test_the_alike_pair_answers_the_effect_in_the_data(tmp_path, effect, seed):
-    exp = design_experiment(seed, effect)
-    runs = {n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, 1e-3) for n, r in exp.runs.items()}
-    for n, d in runs.items():
-        save_measured(d, tmp_path / f"{n}.csv")
-    out = tmp_path / "params.yaml"
-    args = ["identify", str(tmp_path / "train1.csv"), str(tmp_path / "train2.csv")]
-    assert main([*args, "--out", str(out), "--no-report", "--quiet"]) == 0
-    params = load_parameters(out)
-    d = diagnose(
-        [runs["train1"], runs["train2"]],
-        params,
-        next(iter(params.axes)),
-        holdout=[runs["heldout"]],
-        candidates=("cable_spring", "unbalance"),
-        max_rounds=1,
-    )
+    _, d = _identified_then_diagnosed(tmp_path, seed, effect, ("cable_spring", "unbalance"))
     assert d.selected_effect == effect
     assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
