@@ -200,7 +200,8 @@ def _tentative_read_out(diag: Diagnosis, data: DiagnosisData) -> IdentificationR
     (point-sampled chosen, the reference gyro averages; the true model reads
     6.3 noise floors held out point-sampled, 0.99 averaged), benchmark
     cable spring seed 7 (stiffness within 1 %, 4.5 noise floors held out at
-    the base's read-out, 1.10 at its own; docs/diagnosis.md "Stop 21").
+    the base's read-out; identify with it held chooses the averaged one and
+    reaches 1.35; docs/diagnosis.md "Stop 21").
     """
     names = [n for n in diag.tentative if n in READ_OUT_EFFECTS]
     if not names or data.side_source != "measured":
