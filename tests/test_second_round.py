@@ -18,11 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from identified_runs import identified_then_diagnosed
 
-from isp_twin.cli import main
-from isp_twin.diagnosis.search import diagnose
-from isp_twin.identification.measured import MeasuredData, save_measured
-from isp_twin.model.parameters import load_parameters
+from isp_twin.identification.measured import MeasuredData
 from isp_twin.reference import design_experiment
 from isp_twin.reference import effects as reference_effects
 from isp_twin.reference.axis import simulate
@@ -53,21 +51,8 @@ def _runs_with_a_gyro_bias() -> dict[str, MeasuredData]:
 
 
 def test_a_second_round_finds_the_second_effect(tmp_path):
-    runs = _runs_with_a_gyro_bias()
-    for name, data in runs.items():
-        save_measured(data, tmp_path / f"{name}.csv")
-    out = tmp_path / "params.yaml"
-    args = ["identify", str(tmp_path / "train1.csv"), str(tmp_path / "train2.csv")]
-    assert main([*args, "--out", str(out), "--no-report", "--quiet"]) == 0
-    params = load_parameters(out)
-    d = diagnose(
-        [runs["train1"], runs["train2"]],
-        params,
-        next(iter(params.axes)),
-        holdout=[runs["heldout"]],
-        candidates=("unbalance", "sensor_bias", "cable_spring"),
-        max_rounds=2,
-    )
+    candidates = ("unbalance", "sensor_bias", "cable_spring")
+    d = identified_then_diagnosed(tmp_path, _runs_with_a_gyro_bias(), candidates, max_rounds=2)
     found = set(d.tentative) | {r.selected for r in d.rounds} - {"none"}
     assert found == {"unbalance", "sensor_bias"}
     second = d.rounds[1]

@@ -28,17 +28,16 @@ import math
 
 import numpy as np
 import pytest
+from identified_runs import identified_then_diagnosed
 
-from isp_twin.cli import main
-from isp_twin.diagnosis.search import diagnose
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.cost import simulate_data
 from isp_twin.identification.equation_error import (
     equation_error_estimate,
     joint_equation_error_estimate,
 )
-from isp_twin.identification.measured import MeasuredData, save_measured
-from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams, load_parameters
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
 from isp_twin.model.substep_model import Integration
 from isp_twin.reference import design_experiment
 
@@ -140,21 +139,7 @@ def _identified_then_diagnosed(tmp_path, seed: int, effect: str, candidates):
     run; (the experiment, the diagnosis)."""
     exp = design_experiment(seed, effect)
     runs = {n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, 1e-3) for n, r in exp.runs.items()}
-    for n, d in runs.items():
-        save_measured(d, tmp_path / f"{n}.csv")
-    out = tmp_path / "params.yaml"
-    args = ["identify", str(tmp_path / "train1.csv"), str(tmp_path / "train2.csv")]
-    assert main([*args, "--out", str(out), "--no-report", "--quiet"]) == 0
-    params = load_parameters(out)
-    d = diagnose(
-        [runs["train1"], runs["train2"]],
-        params,
-        next(iter(params.axes)),
-        holdout=[runs["heldout"]],
-        candidates=candidates,
-        max_rounds=1,
-    )
-    return exp, d
+    return exp, identified_then_diagnosed(tmp_path, runs, candidates)
 
 
 def test_an_unbalance_is_adopted_at_the_noise_with_its_parameters(tmp_path):

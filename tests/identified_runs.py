@@ -1,0 +1,35 @@
+"""Test helper: reference runs identified and diagnosed as a user runs
+`isp-twin identify` (defaults, on train1 and train2) and then `diagnose`
+(with the held-out run)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from isp_twin.cli import main
+from isp_twin.diagnosis.result import Diagnosis
+from isp_twin.diagnosis.search import diagnose
+from isp_twin.identification.measured import MeasuredData, save_measured
+from isp_twin.model.parameters import load_parameters
+
+
+def identified_then_diagnosed(
+    folder: Path, runs: dict[str, MeasuredData], candidates, max_rounds: int = 1
+) -> Diagnosis:
+    """Every run saved as `<name>.csv` in `folder`; `isp-twin identify` on
+    train1 and train2; `diagnose` of those with the parameters it wrote,
+    `heldout` held out, `candidates`, at most `max_rounds` rounds."""
+    for name, data in runs.items():
+        save_measured(data, folder / f"{name}.csv")
+    out = folder / "params.yaml"
+    args = ["identify", str(folder / "train1.csv"), str(folder / "train2.csv")]
+    assert main([*args, "--out", str(out), "--no-report", "--quiet"]) == 0
+    params = load_parameters(out)
+    return diagnose(
+        [runs["train1"], runs["train2"]],
+        params,
+        next(iter(params.axes)),
+        holdout=[runs["heldout"]],
+        candidates=candidates,
+        max_rounds=max_rounds,
+    )
