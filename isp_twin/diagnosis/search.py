@@ -197,10 +197,11 @@ def _tentative_read_out(diag: Diagnosis, data: DiagnosisData) -> IdentificationR
     """`identify` with a tentative effect held (`READ_OUT_EFFECTS`), the
     read-out chosen again, when it chooses another gyro read-out than the
     data's, or at the other gyro read-out where the effect refitted there
-    fits the training runs better (`_other_gyro_read_out`); else None. `diagnose` then judges the base, the effect and its
-    rivals again at that read-out (`round_at_read_out`, `_rival_starts`)
-    and keeps that diagnosis only if an effect is adopted (the output file
-    records that read-out).
+    fits the training runs better (`_other_gyro_read_out`); else None.
+    `diagnose` then judges the base, the effect and its rivals again at
+    that read-out (`round_at_read_out`, `_rival_starts`) and keeps that
+    diagnosis only if an effect is adopted (the output file records that
+    read-out).
 
     An effect absorbed by the friction levels and the pole leaves the
     file's read-out chosen by a distorted base: dev seed deadzone 1000
