@@ -208,3 +208,59 @@ def test_lm_survives_a_model_that_diverges_near_the_start():
         )
         ci = confidence_intervals(fit.jacobian, fit.residual, [0, 50]).half_width
     assert ci.shape == (2,)
+
+
+def test_a_guess_lowers_the_friction_levels_by_what_it_brings_beyond_the_deficit(rate):
+    from isp_twin.diagnosis.candidates import FRICTION_KEPT, _friction_lowered
+    from isp_twin.model.effects import effect_class
+    from isp_twin.model.parameters import RATE_LAYOUT
+
+    x = rate.to_vector()
+    tc = RATE_LAYOUT.column(x, "coulomb")
+    guesses = [{"accel_rad_s2": a, "presliding_rad": 1e-3} for a in (0.0, 3.0, 1e6)]
+    low = _friction_lowered(x, effect_class("lugre"), guesses, DT, deficit=1.0)
+    np.testing.assert_array_equal(low[0], x)  # brings less than the deficit
+    np.testing.assert_allclose(RATE_LAYOUT.column(low[1], "coulomb"), tc - 2.0 * DT)
+    np.testing.assert_allclose(
+        RATE_LAYOUT.column(low[1], "static"), RATE_LAYOUT.column(x, "static") - 2.0 * DT
+    )
+    np.testing.assert_allclose(RATE_LAYOUT.column(low[2], "coulomb"), FRICTION_KEPT * tc)
+    for field in ("pole", "gain", "alpha"):
+        np.testing.assert_array_equal(
+            RATE_LAYOUT.column(low[2], field), RATE_LAYOUT.column(x, field)
+        )
+    # An effect without sliding friction leaves the levels alone.
+    cog = [{"amplitude_rad_s2": 5.0, "period_rad": 0.1, "phase_rad": 0.0}]
+    np.testing.assert_array_equal(_friction_lowered(x, effect_class("cogging"), cog, DT)[0], x)
+
+
+@pytest.mark.parametrize("missing", [2.0, 6.0])
+def test_the_residual_shows_a_coulomb_level_the_model_lacks_as_its_friction_deficit(rate, missing):
+    from isp_twin.diagnosis.residual import residual_context
+    from isp_twin.estimation.simulation_error import predict_one
+    from isp_twin.model.parameters import RATE_LAYOUT, RateParams
+
+    # The runs' axis has `missing` rad/s^2 more sliding friction in every
+    # regime than the model; the residual's innovation shows it against
+    # the motion: the deficit is that level, up to what the different
+    # Stribeck speeds of model and data add (within 25 %).
+    x = rate.to_vector()
+    more = x + RATE_LAYOUT.per_field(
+        {"pole": 0.0, "gain": 0.0, "static": missing * DT, "coulomb": missing * DT, "alpha": 0.0}
+    )
+    rng = np.random.default_rng(3)
+    runs = [
+        make_run(f"r{i}", RateParams.from_vector(more), excitation(rng, 2000, DT), DT, rng)
+        for i in range(2)
+    ]
+    st = stack_runs(runs, integration=EQ6)
+    ctx = residual_context(st, predict_one(st, x), x)
+    assert ctx.coulomb_rad_s2 == pytest.approx(
+        float(np.median(RATE_LAYOUT.column(x, "coulomb"))) / DT
+    )
+    assert ctx.friction_deficit_rad_s2 == pytest.approx(missing, rel=0.25)
+    # The model's own runs show none.
+    same = [make_run("s", rate, excitation(rng, 2000, DT), DT, rng)]
+    st0 = stack_runs(same, integration=EQ6)
+    ctx0 = residual_context(st0, predict_one(st0, x), x)
+    assert abs(ctx0.friction_deficit_rad_s2) < 0.1 * missing

@@ -165,9 +165,14 @@ def fit_candidates(
     classes = {n: effect_class(n, "candidate effect") for n in names if n != BASELINE}
     need = [n for n in classes if starts.get(n) is None]
     if need:
-        starts.update(_guessed_starts(stack, x_rate, classes, need, fixed, context))
+        found, lowered = _guessed_starts(stack, x_rate, classes, need, fixed, context)
+        starts.update(found)
+        rate_starts = {**lowered, **(rate_starts or {})}
     layouts, problems, scales = _problems(
-        names, classes, starts, x_rate, rate_starts, max_iter, stack.integration.substeps
+        _entries(names, starts, rate_starts or {}, x_rate),
+        classes,
+        max_iter,
+        stack.integration.substeps,
     )
 
     def evaluate(reqs):
@@ -183,6 +188,12 @@ def fit_candidates(
         return residuals_many(stack, batch, fixed)
 
     fits = solve_many(problems, evaluate)
+    best: dict[str, int] = {}
+    for i, (layout, fit) in enumerate(zip(layouts, fits)):
+        if layout[0] not in best or fit.sse < fits[best[layout[0]]].sse:
+            best[layout[0]] = i
+    keep = list(best.values())
+    layouts, fits, scales = ([v[i] for i in keep] for v in (layouts, fits, scales))
     if polish:
         fits = _polish_effects(stack, layouts, fits, scales, max_iter, fixed)
     return {
@@ -191,13 +202,15 @@ def fit_candidates(
     }
 
 
-def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> dict[str, dict]:
+def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> tuple[dict, dict]:
     """The global step: every guess of every candidate in `need` simulated in
-    one batch at the current rate parameters; each candidate's best guess."""
+    one batch at the current rate parameters; each candidate's best guess,
+    and the rate start of those whose guesses carry sliding friction
+    (`_friction_lowered`)."""
     if context is None:
         one = predict_one(stack, x_rate, fixed)
-        context = residual_context(stack, one, RATE_LAYOUT.column(x_rate, "pole"))
-    guesses = {}
+        context = residual_context(stack, one, x_rate)
+    guesses, rates = {}, {}
     for n in need:
         cls = classes[n]
         gs = cls.guesses(context)
@@ -205,18 +218,56 @@ def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> dict[str, d
             for p in cls.param_names:
                 g[p] = float(np.clip(g[p], *cls.bounds[p]))
         guesses[n] = gs
+        rates[n] = _friction_lowered(x_rate, cls, gs, stack.dt, context.friction_deficit_rad_s2)
     reqs = [
         (
-            np.tile(x_rate, (len(guesses[n]), 1)),
+            rates[n],
             n,
             {p: np.array([g[p] for g in guesses[n]]) for p in classes[n].param_names},
         )
         for n in need
     ]
-    return {
-        n: guesses[n][int(np.argmin(np.einsum("ij,ij->i", res, res)))]
-        for n, res in zip(need, residuals_many(stack, reqs, fixed))
+    ranked = [n for n in need if not classes[n].refine_every_guess]
+    best = {
+        n: int(np.argmin(np.einsum("ij,ij->i", res, res)))
+        for n, res in zip(ranked, residuals_many(stack, [r for r in reqs if r[1] in ranked], fixed))
     }
+    starts: dict = {n: guesses[n][i] for n, i in best.items()}
+    rate_starts = {
+        n: rates[n][i] for n, i in best.items() if not np.array_equal(rates[n][i], x_rate)
+    }
+    for n in need:
+        if classes[n].refine_every_guess:
+            starts[n] = list(guesses[n])
+            rate_starts[n] = rates[n]
+    return starts, rate_starts
+
+
+#: The lowest share of a friction level `_friction_lowered` leaves.
+FRICTION_KEPT = 0.05
+
+
+def _friction_lowered(x_rate, cls, guesses, dt: float, deficit: float = 0.0) -> np.ndarray:
+    """Per guess, (G, `RATE_LAYOUT.size`): the rate parameters with the static
+    and Coulomb levels of every regime lowered by the sliding friction the
+    guess brings (`Effect.sliding_friction_rad_s2`) beyond the `deficit`
+    the residual shows (`ResidualContext.friction_deficit_rad_s2`) [rad/s^2],
+    times dt (rate per sample), to no less than `FRICTION_KEPT` of their value.
+
+    A base fitted without a friction-like effect (LuGre's bristles) carries
+    it in its levels: the guess added on top would double it and lose to
+    the smallest guess whatever the data say. A base that lacks it (a
+    parameter file made without it) shows it as the deficit, and is not
+    lowered by that part."""
+    xs = np.tile(np.asarray(x_rate, float), (len(guesses), 1))
+    brought = np.array([cls.sliding_friction_rad_s2(g) for g in guesses])
+    shift = np.maximum(brought - max(deficit, 0.0), 0.0) * dt
+    if not shift.any():
+        return xs
+    for field in ("static", "coulomb"):
+        idx = list(RATE_LAYOUT.field_indices(field))
+        xs[:, idx] = np.maximum(xs[:, idx] - shift[:, None], FRICTION_KEPT * xs[:, idx])
+    return xs
 
 
 def _held(cls, m: int) -> list[str]:
@@ -228,22 +279,38 @@ def _held(cls, m: int) -> list[str]:
     return held
 
 
-def _problems(names, classes, starts, x_rate, rate_starts, max_iter, m):
-    """Each candidate's vector layout, Levenberg-Marquardt problem and bounds;
-    at m = 1 (`_held`) a `substep_only` parameter is held at its default.
+def _entries(names, starts, rate_starts, x_rate) -> list[tuple]:
+    """(name, effect start, rate start) of each fit to run: one per candidate,
+    several for one whose guesses are all refined (a list of starts,
+    `Effect.refine_every_guess`), each with its own rate start."""
+    out = []
+    for n in names:
+        start, rate = starts.get(n), rate_starts.get(n, x_rate)
+        if isinstance(start, list):
+            rows = np.broadcast_to(rate, (len(start), np.size(x_rate)))
+            out += [(n, s, r) for s, r in zip(start, rows)]
+        else:
+            out.append((n, start, rate))
+    return out
+
+
+def _problems(entries, classes, max_iter, m):
+    """Each fit's vector layout, Levenberg-Marquardt problem and bounds, one
+    per entry (`_entries`); at m = 1 (`_held`) a `substep_only` parameter is
+    held at its default.
 
     Returns (layouts, problems, scales): layouts as (name, CandidateLayout,
     frozen effect parameters, effect start); scales as (lower, upper, scale).
     """
     layouts, problems, scales = [], [], []
-    for n in names:
+    for n, effect_start, rate_start in entries:
         if n == BASELINE:
             free, frozen, start = [], [], {}
         else:
             cls = classes[n]
             frozen = _held(cls, m)
             free = [p for p in cls.param_names if p not in frozen]
-            start = cls.completed(starts[n])
+            start = cls.completed(effect_start)
             if m == 1:
                 start.update({p: cls.defaults.get(p, cls.null[p]) for p in cls.substep_only})
         lo_e = np.array([classes[n].bounds[p][0] for p in free]) if free else np.zeros(0)
@@ -253,7 +320,7 @@ def _problems(names, classes, starts, x_rate, rate_starts, max_iter, m):
             [_effect_scale(p, lo, hi, g) for p, lo, hi, g in zip(free, lo_e, hi_e, x_e)]
         )
         layouts.append((n, CandidateLayout(RATE_LAYOUT, tuple(free)), frozen, start))
-        x_n = np.asarray((rate_starts or {}).get(n, x_rate), float)
+        x_n = np.asarray(rate_start, float)
         lo_r, hi_r, sc_r = rate_bounds(x_n)
         bounds = tuple(np.concatenate(v) for v in ((lo_r, lo_e), (hi_r, hi_e), (sc_r, sc_e)))
         scales.append(bounds)

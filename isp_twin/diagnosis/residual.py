@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from isp_twin.estimation.verdict import noise_floor_of
+from isp_twin.model.parameters import RATE_LAYOUT
 
 __all__ = [
     "NOISE_METHOD",
@@ -56,6 +57,12 @@ class ResidualContext:
         moving: samples where the simulated axis moved on both ends of the step.
         run_id: index of the run of each sample.
         dt: sample period [s].
+        coulomb_rad_s2: the model's sliding friction, the median over the
+            regimes of its Coulomb level [rad/s^2] (NaN: not known).
+        friction_deficit_rad_s2: the sliding friction the model lacks, the
+            mean of ``-accel * sign(rate)`` over the moving samples [rad/s^2]
+            (0: not known). With `coulomb_rad_s2`, what a guess of a
+            friction-like effect (LuGre's bristle force) is scaled by.
     """
 
     u: np.ndarray
@@ -66,16 +73,20 @@ class ResidualContext:
     moving: np.ndarray
     run_id: np.ndarray
     dt: float
+    coulomb_rad_s2: float = float("nan")
+    friction_deficit_rad_s2: float = 0.0
 
 
-def residual_context(stack, resp, pole: np.ndarray) -> ResidualContext:
+def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
     """Context of one model's residual on a `RunStack`.
 
     Args:
         stack: the runs.
         resp: `AxisResponse` of that model, arrays (R, N).
-        pole: per-regime pole a of the model, (4,).
+        rate_vector: the model's rate-form parameters (`RATE_LAYOUT.size`,).
     """
+    pole = RATE_LAYOUT.column(rate_vector, "pole")
+    coulomb = float(np.median(RATE_LAYOUT.column(rate_vector, "coulomb"))) / stack.dt
     res = stack.omega - resp.omega
     true = resp.omega if resp.omega_true is None else resp.omega_true
     a = np.asarray(pole)[resp.regime]
@@ -87,6 +98,8 @@ def residual_context(stack, resp, pole: np.ndarray) -> ResidualContext:
     angle_prev = np.concatenate([stack.angle[:, :1], stack.angle[:, :-1]], axis=1)
     run_id = np.broadcast_to(np.arange(stack.u.shape[0])[:, None], stack.u.shape)
     f = stack.flat
+    sliding = f(moving)
+    deficit = -float(np.mean(f(accel)[sliding] * np.sign(f(stack.omega)[sliding])))
     return ResidualContext(
         u=f(stack.u),
         angle=f(angle_prev),
@@ -96,6 +109,8 @@ def residual_context(stack, resp, pole: np.ndarray) -> ResidualContext:
         moving=f(moving),
         run_id=f(run_id),
         dt=stack.dt,
+        coulomb_rad_s2=coulomb,
+        friction_deficit_rad_s2=deficit if sliding.any() else 0.0,
     )
 
 

@@ -32,6 +32,12 @@ class Effect:
     #: take (a parameter added to an effect after files were written with it:
     #: `resonance`'s ``payload_fraction``).
     defaults: ClassVar[dict[str, float]] = {}
+    #: True where a fit at the current rate parameters cannot rank the
+    #: `guesses` (LuGre: its bristle force trades against the friction
+    #: levels the rate parameters hold): the diagnosis then refines every
+    #: guess with the rate parameters and keeps the best
+    #: (`isp_twin.diagnosis.candidates`), so the guesses are a few.
+    refine_every_guess: ClassVar[bool] = False
     #: Parameters that act only inside the sub-steps (m > 1): Eq. 6 and m = 1
     #: do not see them, so the diagnosis holds them at their start there
     #: (`isp_twin.diagnosis.candidates`).
@@ -91,6 +97,13 @@ class Effect:
         """The true rate a reading means at rest or in steady motion (the
         inverse of `measure` where it has one; the reading itself by default)."""
         return reading
+
+    @classmethod
+    def sliding_friction_rad_s2(cls, params: Mapping[str, float]) -> float:
+        """The friction the effect adds in steady sliding, against the motion
+        [rad/s^2] (0 by default; LuGre's bristle force): a base fitted without
+        the effect carries it in its Coulomb and static levels."""
+        return 0.0
 
     @classmethod
     def negligible(cls, params: Mapping[str, float], u_peak: float) -> str:
