@@ -35,7 +35,6 @@ from isp_twin.identification.fit import Settings as IdSettings
 from isp_twin.identification.gyro_error import gyro_error_estimate
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import (
-    RATE_LAYOUT,
     EffectSpec,
     RateParams,
 )
@@ -51,6 +50,7 @@ __all__ = [
     "ALIKE",
     "SENSOR_BIAS",
     "TORQUE_GLOBAL",
+    "OWN_FIT_TOO",
     "GLOBAL_CYCLES",
     "GLOBAL_GAIN",
     "COMMAND_EFFECTS",
@@ -93,7 +93,14 @@ SENSOR_BIAS = "sensor_bias"
 #: Torque effects whose leader, when not at the noise after the joint
 #: restarts, gets `identify`'s global step with the effect held at its joint
 #: equation-error estimate (`_torque_global_stage`).
-TORQUE_GLOBAL: tuple[str, ...] = ("cogging", "unbalance", "cable_spring")
+TORQUE_GLOBAL: tuple[str, ...] = ("cogging", "unbalance", "cable_spring", "lugre")
+#: Of those, the ones also held at their own simulation-error fit, the
+#: better global refit kept: the bristles' turn-round changes a one-step
+#: prediction by the bristle force times dt, under the gyro noise of one
+#: sample (benchmark LuGre seed 1: 7x under it; the joint estimate put the
+#: pre-sliding distance 14x short), yet on LuGre seed 0 the global refit
+#: held at the joint estimate reached 1.3 noise floors, 3.9 at its own fit.
+OWN_FIT_TOO: tuple[str, ...] = ("lugre",)
 
 
 def round_at_read_out(data: DiagnosisData, starts: dict, fixed) -> RoundResult:
@@ -186,7 +193,7 @@ def diagnosis_round(
     joint restarts (round 1) -> re-opened rates -> acceptance."""
     train = data.train
     resp = predict_one(train, x_current, fixed)
-    context = residual_context(train, resp, RATE_LAYOUT.column(x_current, "pole"))
+    context = residual_context(train, resp, x_current)
     names = remaining + ([BASELINE] if current is None else [])
     fits = fit_candidates(train, x_current, names, fixed, context=context, max_iter=data.max_iter)
     base = fits.pop(BASELINE) if current is None else _as_round_base(current)
@@ -269,6 +276,8 @@ def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdic
     # (`_effect_itself`), took the global step from the unbalance it stood
     # in for (benchmark unbalance seed 6).
     top = [v.name for v in verdicts if v.significant and not _not_the_effect(data, st, v.name)][:1]
+    if not top:
+        top = _training_leader(data, st)
     if top and top[0] in TORQUE_GLOBAL:
         return _torque_global_stage(data, st, verdicts, starts, top[0])
     # A command effect found by its local refit is refitted globally too:
@@ -289,10 +298,35 @@ def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdic
     return verdicts
 
 
+def _training_leader(data, st) -> list[str]:
+    """No significant candidate, the base not at the noise: the torque effect
+    (`TORQUE_GLOBAL`) with the lowest training BIC, below the base's, that
+    can be the effect (`_not_the_effect`), as `[name]`; else `[]`.
+
+    The local refit of a candidate keeps the rate parameters of a base that
+    absorbed the effect, and can fit the training runs far better yet be
+    worse held out: benchmark LuGre seed 1, training error 1.1 noise floors
+    against the base's 2.1, held out 4.4 against 3.5; after the global step
+    (`_torque_global_stage`) 1.06 held out. It is judged held-out after that
+    step, by the same rules."""
+    if rms_of(st.base_held) <= CONVERGED_RATIO * st.floor:
+        return []
+    fits = [
+        st.fits[n]
+        for n in TORQUE_GLOBAL
+        if n in st.fits and n not in st.failed and st.fits[n].bic < st.base.bic
+    ]
+    for fit in sorted(fits, key=lambda f: f.bic):
+        if not _not_the_effect(data, st, fit.name):
+            return [fit.name]
+    return []
+
+
 def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     """Round 1, a torque effect leading (`TORQUE_GLOBAL`) but not at the noise:
     its rate parameters searched again globally with the effect held at its
-    joint equation-error estimate.
+    joint equation-error estimate (and, for `OWN_FIT_TOO`, apart from that
+    at its own fit, the better kept).
 
     The joint estimate comes from the data alone, not from a base that
     absorbed the effect, so it holds the effect where the local or
@@ -303,8 +337,20 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     """
     if rms_of(st.held_of[top]) <= CONVERGED_RATIO * st.floor:
         return verdicts
-    held = dict(starts[top].effect.params) if top in starts else None
-    g = _refit_globally(data, st.fits[top], held)
+    holds = [dict(starts[top].effect.params)] if top in starts else []
+    if not holds or top in OWN_FIT_TOO:
+        holds.append(None)
+    g = min((_global_cycles(data, st.fits[top], held) for held in holds), key=lambda f: f.sse)
+    if not g.sse < st.fits[top].sse:
+        return verdicts
+    st.update(data, {top: g})
+    return st.judged_again(verdicts, {top: g})
+
+
+def _global_cycles(data, fit: CandidateFit, held: dict | None) -> CandidateFit:
+    """`_refit_globally` from `held` (None: `fit`'s own effect), then again
+    from each result while the training cost drops (`GLOBAL_CYCLES`)."""
+    g = _refit_globally(data, fit, held)
     for _ in range(GLOBAL_CYCLES):
         # Held at its start, the effect ends polished away from it, the
         # rate parameters still fitted to the start: identified again with
@@ -313,10 +359,7 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
         if not again.sse < (1.0 - GLOBAL_GAIN) * g.sse:
             break
         g = again
-    if not g.sse < st.fits[top].sse:
-        return verdicts
-    st.update(data, {top: g})
-    return st.judged_again(verdicts, {top: g})
+    return g
 
 
 def _reopen_stage(data, st, verdicts) -> list[Verdict]:
