@@ -190,8 +190,8 @@ def test_a_tentative_unbalance_is_judged_at_the_other_gyro_read_out(tmp_path):
 
 
 # LuGre seeds 1 and 2 of the benchmark shaped the LuGre search of stop 23
-# (docs/diagnosis.md "Stop 23"): every start refined with the friction levels
-# lowered by its bristle force (`Effect.refine_every_guess`,
+# (docs/diagnosis.md "Stop 23"): six starts refined with the friction levels
+# lowered by its bristle force (`Effect.refined_starts`,
 # `candidates._friction_lowered`), the global step also held at the LuGre
 # fit (`rounds.OWN_FIT_TOO`), and on seed 1, where no local refit beat the
 # base held out, the global step for the candidate that fits the training

@@ -161,19 +161,11 @@ def fit_candidates(
     """
     x_rate = np.asarray(rate_vector, float)
     fixed = tuple(fixed)
-    starts = dict(starts or {})
     classes = {n: effect_class(n, "candidate effect") for n in names if n != BASELINE}
-    need = [n for n in classes if starts.get(n) is None]
-    if need:
-        found, lowered = _guessed_starts(stack, x_rate, classes, need, fixed, context)
-        starts.update(found)
-        rate_starts = {**lowered, **(rate_starts or {})}
-    layouts, problems, scales = _problems(
-        _entries(names, starts, rate_starts or {}, x_rate),
-        classes,
-        max_iter,
-        stack.integration.substeps,
+    entries = _entries(
+        names, *_starts(stack, x_rate, classes, fixed, context, starts, rate_starts), x_rate
     )
+    layouts, problems, scales = _problems(entries, classes, max_iter, stack.integration.substeps)
 
     def evaluate(reqs):
         batch = []
@@ -187,13 +179,7 @@ def fit_candidates(
             batch.append((rate, n, eff))
         return residuals_many(stack, batch, fixed)
 
-    fits = solve_many(problems, evaluate)
-    best: dict[str, int] = {}
-    for i, (layout, fit) in enumerate(zip(layouts, fits)):
-        if layout[0] not in best or fit.sse < fits[best[layout[0]]].sse:
-            best[layout[0]] = i
-    keep = list(best.values())
-    layouts, fits, scales = ([v[i] for i in keep] for v in (layouts, fits, scales))
+    layouts, fits, scales = _best_per_candidate(layouts, solve_many(problems, evaluate), scales)
     if polish:
         fits = _polish_effects(stack, layouts, fits, scales, max_iter, fixed)
     return {
@@ -202,45 +188,72 @@ def fit_candidates(
     }
 
 
+def _starts(stack, x_rate, classes, fixed, context, starts, rate_starts) -> tuple[dict, dict]:
+    """(effect starts, rate starts) by name: the given ones, the guessed ones
+    (`_guessed_starts`) for the candidates without one; a given rate start
+    wins over a guessed one."""
+    starts = dict(starts or {})
+    rate_starts = dict(rate_starts or {})
+    need = [n for n in classes if starts.get(n) is None]
+    if need:
+        found, lowered = _guessed_starts(stack, x_rate, classes, need, fixed, context)
+        starts.update(found)
+        rate_starts = {**lowered, **rate_starts}
+    return starts, rate_starts
+
+
+def _best_per_candidate(layouts, fits, scales) -> tuple[list, list, list]:
+    """(layouts, fits, scales) with one fit per candidate name, its lowest
+    training sse (several for one with `Effect.refined_starts`, `_entries`)."""
+    best: dict[str, int] = {}
+    for i, (layout, fit) in enumerate(zip(layouts, fits)):
+        if layout[0] not in best or fit.sse < fits[best[layout[0]]].sse:
+            best[layout[0]] = i
+    keep = list(best.values())
+    return tuple([v[i] for i in keep] for v in (layouts, fits, scales))
+
+
 def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> tuple[dict, dict]:
     """The global step: every guess of every candidate in `need` simulated in
-    one batch at the current rate parameters; each candidate's best guess,
-    and the rate start of those whose guesses carry sliding friction
-    (`_friction_lowered`)."""
+    one batch at the current rate parameters; each candidate's best guess.
+    A candidate with `Effect.refined_starts` gets a list of starts: its best
+    guess and those, each with the friction levels lowered by the sliding
+    friction it brings (`_friction_lowered`), its rate starts as rows."""
     if context is None:
         one = predict_one(stack, x_rate, fixed)
         context = residual_context(stack, one, x_rate)
-    guesses, rates = {}, {}
+    guesses = {}
     for n in need:
-        cls = classes[n]
-        gs = cls.guesses(context)
-        for g in gs:
-            for p in cls.param_names:
-                g[p] = float(np.clip(g[p], *cls.bounds[p]))
-        guesses[n] = gs
-        rates[n] = _friction_lowered(x_rate, cls, gs, stack.dt, context.friction_deficit_rad_s2)
+        guesses[n] = [_clipped(classes[n], g) for g in classes[n].guesses(context)]
     reqs = [
         (
-            rates[n],
+            np.tile(x_rate, (len(guesses[n]), 1)),
             n,
             {p: np.array([g[p] for g in guesses[n]]) for p in classes[n].param_names},
         )
         for n in need
     ]
-    ranked = [n for n in need if not classes[n].refine_every_guess]
-    best = {
-        n: int(np.argmin(np.einsum("ij,ij->i", res, res)))
-        for n, res in zip(ranked, residuals_many(stack, [r for r in reqs if r[1] in ranked], fixed))
+    starts: dict = {
+        n: guesses[n][int(np.argmin(np.einsum("ij,ij->i", res, res)))]
+        for n, res in zip(need, residuals_many(stack, reqs, fixed))
     }
-    starts: dict = {n: guesses[n][i] for n, i in best.items()}
-    rate_starts = {
-        n: rates[n][i] for n, i in best.items() if not np.array_equal(rates[n][i], x_rate)
-    }
+    rate_starts = {}
     for n in need:
-        if classes[n].refine_every_guess:
-            starts[n] = list(guesses[n])
-            rate_starts[n] = rates[n]
+        more = [_clipped(classes[n], g) for g in classes[n].refined_starts(context)]
+        if more:
+            lowered = _friction_lowered(
+                x_rate, classes[n], more, stack.dt, context.friction_deficit_rad_s2
+            )
+            starts[n] = [starts[n], *more]
+            rate_starts[n] = np.vstack([x_rate, lowered])
     return starts, rate_starts
+
+
+def _clipped(cls, guess: dict) -> dict:
+    """`guess` with every parameter clipped to the class's bounds."""
+    return {
+        p: float(np.clip(v, *cls.bounds[p])) if p in cls.bounds else v for p, v in guess.items()
+    }
 
 
 #: The lowest share of a friction level `_friction_lowered` leaves.
@@ -281,8 +294,8 @@ def _held(cls, m: int) -> list[str]:
 
 def _entries(names, starts, rate_starts, x_rate) -> list[tuple]:
     """(name, effect start, rate start) of each fit to run: one per candidate,
-    several for one whose guesses are all refined (a list of starts,
-    `Effect.refine_every_guess`), each with its own rate start."""
+    several for one with `Effect.refined_starts` (a list of starts), each
+    with its own rate start."""
     out = []
     for n in names:
         start, rate = starts.get(n), rate_starts.get(n, x_rate)

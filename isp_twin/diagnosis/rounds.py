@@ -340,17 +340,18 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     holds = [dict(starts[top].effect.params)] if top in starts else []
     if not holds or top in OWN_FIT_TOO:
         holds.append(None)
-    g = min((_global_cycles(data, st.fits[top], held) for held in holds), key=lambda f: f.sse)
+    # Each hold refitted once, the better one refitted again (`_global_cycles`).
+    firsts = [_refit_globally(data, st.fits[top], held) for held in holds]
+    g = _global_cycles(data, min(firsts, key=lambda f: f.sse))
     if not g.sse < st.fits[top].sse:
         return verdicts
     st.update(data, {top: g})
     return st.judged_again(verdicts, {top: g})
 
 
-def _global_cycles(data, fit: CandidateFit, held: dict | None) -> CandidateFit:
-    """`_refit_globally` from `held` (None: `fit`'s own effect), then again
-    from each result while the training cost drops (`GLOBAL_CYCLES`)."""
-    g = _refit_globally(data, fit, held)
+def _global_cycles(data, g: CandidateFit) -> CandidateFit:
+    """A global refit `g` refitted again from its own effect while the
+    training cost drops by `GLOBAL_GAIN`, at most `GLOBAL_CYCLES` times."""
     for _ in range(GLOBAL_CYCLES):
         # Held at its start, the effect ends polished away from it, the
         # rate parameters still fitted to the start: identified again with

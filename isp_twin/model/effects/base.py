@@ -32,12 +32,6 @@ class Effect:
     #: take (a parameter added to an effect after files were written with it:
     #: `resonance`'s ``payload_fraction``).
     defaults: ClassVar[dict[str, float]] = {}
-    #: True where a fit at the current rate parameters cannot rank the
-    #: `guesses` (LuGre: its bristle force trades against the friction
-    #: levels the rate parameters hold): the diagnosis then refines every
-    #: guess with the rate parameters and keeps the best
-    #: (`isp_twin.diagnosis.candidates`), so the guesses are a few.
-    refine_every_guess: ClassVar[bool] = False
     #: Parameters that act only inside the sub-steps (m > 1): Eq. 6 and m = 1
     #: do not see them, so the diagnosis holds them at their start there
     #: (`isp_twin.diagnosis.candidates`).
@@ -97,6 +91,16 @@ class Effect:
         """The true rate a reading means at rest or in steady motion (the
         inverse of `measure` where it has one; the reading itself by default)."""
         return reading
+
+    @classmethod
+    def refined_starts(cls, ctx) -> list[dict[str, float]]:
+        """Starts the diagnosis refines with the rate parameters beside the
+        best of the `guesses` (none by default): for an effect whose guesses
+        a simulation at the current rate parameters cannot rank (LuGre: its
+        bristle force trades against the friction levels those hold), each
+        with the levels lowered by its `sliding_friction_rad_s2`
+        (`isp_twin.diagnosis.candidates`)."""
+        return []
 
     @classmethod
     def sliding_friction_rad_s2(cls, params: Mapping[str, float]) -> float:

@@ -90,34 +90,49 @@ class LuGre(Effect):
         """In steady sliding the bristles sit at ``z_max``: the force ``accel_rad_s2``."""
         return float(params["accel_rad_s2"])
 
-    #: Fitted at the current rate parameters a guess cannot be ranked: the
-    #: base carries the bristle force in its friction levels, so every
-    #: guess is refined with them (`Effect.refine_every_guess`).
-    refine_every_guess = True
+    @classmethod
+    def _sliding(cls, ctx) -> float:
+        """The sliding friction the data show [rad/s^2]: the model's Coulomb
+        level plus what its residual shows it lacks (`ResidualContext`);
+        NaN where neither is known."""
+        deficit = max(getattr(ctx, "friction_deficit_rad_s2", 0.0), 0.0)
+        sliding = getattr(ctx, "coulomb_rad_s2", float("nan")) + deficit
+        return sliding if np.isfinite(sliding) and sliding > 0.0 else float("nan")
 
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
-        """Six starts: bristle force 20 % and 50 % of the sliding friction
-        (the model's Coulomb level plus the friction its residual shows it
-        lacks, `ResidualContext`; 4 and 10 rad/s^2 where neither is known),
-        pre-sliding 0.2, 0.6 and 2 mrad.
+        """A grid: bristle force 5 % to 100 % of the sliding friction
+        (`_sliding`; 4 to 40 rad/s^2 where it is not known), pre-sliding
+        0.3 to 20 mrad (geometric): ranked at the current rate parameters,
+        right where those lack the bristle force (a parameter file made
+        without it)."""
+        sliding = cls._sliding(ctx)
+        forces = (
+            np.geomspace(4.0, 40.0, 10)
+            if np.isnan(sliding)
+            else sliding * np.geomspace(0.05, 1.0, 10)
+        )
+        return [
+            {"accel_rad_s2": float(a), "presliding_rad": float(z)}
+            for a in forces
+            for z in np.geomspace(3e-4, 2e-2, 14)
+        ]
 
-        The bristle force is a share of the sliding friction, not a fixed
-        acceleration: in steady sliding it is a Coulomb term, so a model
-        fitted without it carries it in its Coulomb level, which bounds it.
-        Each start has that level lowered by it, beyond what the residual
-        shows missing (`sliding_friction_rad_s2`,
+    @classmethod
+    def refined_starts(cls, ctx) -> list[dict[str, float]]:
+        """Six starts refined beside the best guess: bristle force 20 % and
+        50 % of the sliding friction (`_sliding`; 4 and 10 rad/s^2 where it
+        is not known), pre-sliding 0.2, 0.6 and 2 mrad.
+
+        In steady sliding the bristle force is a Coulomb term, so a model
+        fitted without it carries it in its Coulomb level, which bounds it;
+        each start has that level lowered by it (`sliding_friction_rad_s2`,
         `isp_twin.diagnosis.candidates`). Simulated at the base's rate
-        parameters the larger bristle forces all look worse than the
-        smallest, yet refined they fit best (benchmark LuGre seeds 1 and 2,
-        docs/diagnosis.md "Stop 23"): hence every start is refined.
-        """
-        sliding = getattr(ctx, "coulomb_rad_s2", float("nan"))
-        sliding += max(getattr(ctx, "friction_deficit_rad_s2", 0.0), 0.0)
-        if np.isfinite(sliding) and sliding > 0.0:
-            forces = (0.2 * sliding, 0.5 * sliding)
-        else:
-            forces = (4.0, 10.0)
+        parameters the larger forces all look worse than the smallest, yet
+        refined they fit best (benchmark LuGre seeds 1 and 2,
+        docs/diagnosis.md "Stop 23")."""
+        sliding = cls._sliding(ctx)
+        forces = (4.0, 10.0) if np.isnan(sliding) else (0.2 * sliding, 0.5 * sliding)
         return [
             {"accel_rad_s2": float(a), "presliding_rad": z}
             for a in forces
