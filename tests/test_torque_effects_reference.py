@@ -195,17 +195,16 @@ def test_a_tentative_unbalance_is_judged_at_the_other_gyro_read_out(tmp_path):
 # `candidates._friction_lowered`), the global step also held at the LuGre
 # fit (`rounds.OWN_FIT_TOO`), and on seed 1, where no local refit beat the
 # base held out, the global step for the candidate that fits the training
-# runs best (`rounds._training_leader`). Regression tests, not their
-# validation. Seed 1's pre-sliding distance ends 20 % off: its strength only.
-@pytest.mark.parametrize(("seed", "both"), [(1, False), (2, True)])
-def test_a_lugre_axis_is_adopted_at_the_noise(tmp_path, seed, both):
+# runs best (`rounds._training_leader`). Seed 1 goes through all of them
+# (seed 2, a further two minutes, is left to the benchmark). A regression
+# test, not their validation. Its pre-sliding distance ends 20 % off: the
+# bristle force only.
+def test_a_lugre_axis_is_adopted_at_the_noise(tmp_path):
     exp, d = _identified_then_diagnosed(
-        tmp_path, seed, "lugre", ("lugre", "cable_spring", "input_delay")
+        tmp_path, 1, "lugre", ("lugre", "cable_spring", "input_delay")
     )
     true = exp.truth()["effects"][0]["params"]
     assert d.selected_effect == "lugre"
     assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
     got = dict(d.params_out.axes[d.axis].effects[0].params)
     assert got["accel_rad_s2"] == pytest.approx(true["accel_rad_s2"], rel=0.1)
-    if both:
-        assert got["presliding_rad"] == pytest.approx(true["presliding_rad"], rel=0.1)
