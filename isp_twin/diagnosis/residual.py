@@ -98,15 +98,15 @@ def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
     angle_prev = np.concatenate([stack.angle[:, :1], stack.angle[:, :-1]], axis=1)
     run_id = np.broadcast_to(np.arange(stack.u.shape[0])[:, None], stack.u.shape)
     f = stack.flat
-    sliding = f(moving)
-    deficit = -float(np.mean(f(accel)[sliding] * np.sign(f(stack.omega)[sliding])))
+    rate, innovation, sliding = f(stack.omega), f(accel), f(moving)
+    deficit = -float(np.mean(innovation[sliding] * np.sign(rate[sliding])))
     return ResidualContext(
         u=f(stack.u),
         angle=f(angle_prev),
-        rate=f(stack.omega),
+        rate=rate,
         residual=f(res),
-        accel=f(accel),
-        moving=f(moving),
+        accel=innovation,
+        moving=sliding,
         run_id=f(run_id),
         dt=stack.dt,
         coulomb_rad_s2=coulomb,

@@ -95,8 +95,7 @@ class LuGre(Effect):
         """The sliding friction the data show [rad/s^2]: the model's Coulomb
         level plus what its residual shows it lacks (`ResidualContext`);
         NaN where neither is known."""
-        deficit = max(getattr(ctx, "friction_deficit_rad_s2", 0.0), 0.0)
-        sliding = getattr(ctx, "coulomb_rad_s2", float("nan")) + deficit
+        sliding = ctx.coulomb_rad_s2 + max(ctx.friction_deficit_rad_s2, 0.0)
         return sliding if np.isfinite(sliding) and sliding > 0.0 else float("nan")
 
     @classmethod
