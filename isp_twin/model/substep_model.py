@@ -825,20 +825,19 @@ def _effects_before_the_run(effects, u_rows, side_y, use_side, dt):
     u_eff = u_rows
     if commands and not set(commands) & set(torques):
         # A command hook sees only the command: run it over the whole run
-        # first (the same calls in the same order as inside the sample loop).
+        # first, hook after hook (`Effect.command_run`; the sample loop
+        # calls them in the same order). The last sample drives no step.
         u_eff = u_rows.copy()
-        for k in range(1, n):
-            uk = u_rows[:, k - 1]
-            for e in commands:
-                uk = e.command(uk)
-            u_eff[:, k - 1] = uk
+        for e in commands:
+            u_eff[:, : n - 1] = e.command_run(u_eff[:, : n - 1])
         commands = []
     if torques and use_side and not any(e.acceleration_uses_rate for e in torques):
         # Accelerations of the measured angle alone (cogging, springs,
-        # unbalance, offsets) are known before the run: one kernel call.
-        for k in range(1, n):
-            at = side_y[:, k - 1]
-            extra[:, k - 1] = sum(e.acceleration(at, None) for e in torques) * dt
+        # unbalance, offsets) are known before the run: elementwise in the
+        # angle, the whole run in one call each (parameters (rows,) broadcast
+        # along the last axis, hence (N - 1, rows)), then one kernel call.
+        at = side_y[:, : n - 1].T
+        extra[:, : n - 1] = sum(e.acceleration(at, None) for e in torques).T * dt
         torques = []
     return commands, torques, u_eff, extra
 
@@ -848,10 +847,7 @@ def _measured(out: np.ndarray, effects) -> np.ndarray:
     sensors = [e for e in effects if type(e).measure is not Effect.measure]
     if not sensors:
         return out
-    measured = np.empty_like(out)
-    for k in range(out.shape[1]):
-        r = out[:, k]
-        for e in sensors:
-            r = e.measure(r)
-        measured[:, k] = r
+    measured = out
+    for e in sensors:
+        measured = e.measure_run(measured)
     return measured

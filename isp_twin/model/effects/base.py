@@ -9,9 +9,11 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import ClassVar
 
+import numpy as np
+
 from isp_twin.errors import ParameterError, nearest
 
-__all__ = ["Effect"]
+__all__ = ["Effect", "elementwise_run"]
 
 
 class Effect:
@@ -20,8 +22,9 @@ class Effect:
     name: ClassVar[str] = "none"
     param_names: ClassVar[tuple[str, ...]] = ()
     #: False where `acceleration` depends on the angle alone (no rate, no
-    #: state): the sub-stepped model then evaluates it before the run
-    #: instead of once per sample (`isp_twin.model.substep_model`).
+    #: state) and is elementwise, its parameters broadcasting along the last
+    #: axis: the sub-stepped model then evaluates it over the whole run in
+    #: one call, before the kernel (`isp_twin.model.substep_model`).
     acceleration_uses_rate: ClassVar[bool] = True
     #: True where the sub-stepped model (m > 1) integrates the effect's state
     #: inside its sub-steps, with the friction and the stick test, from
@@ -84,6 +87,20 @@ class Effect:
     def measure(self, rate: float) -> float:
         return rate
 
+    def command_run(self, u: np.ndarray) -> np.ndarray:
+        """`command` over a whole run: u (rows, N) [digits] -> (rows, N).
+
+        By default `command` sample after sample, in order (a hook with
+        state); a hook without state, or a linear one, overrides this with
+        array operations that give the same numbers.
+        """
+        return _per_sample(self.command, u)
+
+    def measure_run(self, rate: np.ndarray) -> np.ndarray:
+        """`measure` over a whole run: rate (rows, N) [rad/s] -> (rows, N),
+        sample after sample by default (see `command_run`)."""
+        return _per_sample(self.measure, rate)
+
     #: Whether `true_rate` maps a reading back (a sensor error known at rest).
     maps_readings: ClassVar[bool] = False
 
@@ -121,3 +138,18 @@ class Effect:
         angle) cannot tell these parameters as this effect from another, or
         "" (the default: they can)."""
         return ""
+
+
+def _per_sample(hook, x: np.ndarray) -> np.ndarray:
+    """`hook` on each column of x (rows, N), in sample order."""
+    out = np.empty_like(x, dtype=float)
+    for k in range(x.shape[1]):
+        out[:, k] = hook(x[:, k])
+    return out
+
+
+def elementwise_run(hook, x: np.ndarray) -> np.ndarray:
+    """A memoryless hook over a whole run x (rows, N) in one call: the hook's
+    per-row parameters (P,) broadcast along the last axis, so the run is
+    passed as (N, rows)."""
+    return np.asarray(hook(np.asarray(x, dtype=float).T), dtype=float).T

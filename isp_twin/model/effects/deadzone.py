@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.model.effects.base import Effect
+from isp_twin.model.effects.base import Effect, elementwise_run
 
 
 class Deadzone(Effect):
@@ -23,6 +23,10 @@ class Deadzone(Effect):
 
     def command(self, u):
         return np.sign(u) * np.maximum(np.abs(u) - self.params["width_digits"], 0.0)
+
+    def command_run(self, u):
+        """Without state: the whole run in one call."""
+        return elementwise_run(self.command, u)
 
     #: The narrowest width tried and reported, a fraction of the largest command.
     SMALLEST = 0.005

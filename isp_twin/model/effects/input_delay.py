@@ -49,6 +49,19 @@ class InputDelay(Effect):
         self._k += 1
         return (1.0 - self._frac) * now + self._frac * before
 
+    def command_run(self, u):
+        """The same delay line over a whole run (rows, N) by indexing: sample
+        k sees samples k - whole and k - whole - 1, the first one before the
+        start."""
+        u = np.asarray(u, dtype=float)
+        rows, n = u.shape
+        whole = np.broadcast_to(self._whole, (rows,))[:, None]
+        frac = np.broadcast_to(self._frac, (rows,))[:, None]
+        k = np.arange(n)[None, :]
+        now = np.take_along_axis(u, np.maximum(k - whole, 0), axis=1)
+        before = np.take_along_axis(u, np.maximum(k - whole - 1, 0), axis=1)
+        return (1.0 - frac) * now + frac * before
+
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
         """A grid of delays, 0.5 to 40 samples (the best is refined)."""

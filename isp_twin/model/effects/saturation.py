@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.model.effects.base import Effect
+from isp_twin.model.effects.base import Effect, elementwise_run
 
 
 class Saturation(Effect):
@@ -24,6 +24,10 @@ class Saturation(Effect):
     def command(self, u):
         lim = self.params["limit_digits"]
         return np.clip(u, -lim, lim)
+
+    def command_run(self, u):
+        """Without state: the whole run in one call."""
+        return elementwise_run(self.command, u)
 
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:

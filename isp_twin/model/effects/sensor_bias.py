@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from isp_twin.model.effects.base import Effect
+from isp_twin.model.effects.base import Effect, elementwise_run
 
 
 class SensorBias(Effect):
@@ -33,6 +33,10 @@ class SensorBias(Effect):
     def measure(self, rate):
         p = self.params
         return p["bias_rad_s"] + (1.0 + p["scale"]) * rate
+
+    def measure_run(self, rate):
+        """Without state: the whole run in one call."""
+        return elementwise_run(self.measure, rate)
 
     maps_readings = True
 
