@@ -99,3 +99,47 @@ def test_the_true_two_mass_payload_of_reference_axes_is_within_the_issues_bound(
         data = [MeasuredData(name, r.t, r.u, r.omega, r.theta, None, DT)]
         error = rmse(RateParams.from_vector(x), data, effects=(spec,), timing=Timing(0.0, True))
         assert error / sigma < 1.5, name
+
+
+def _crossing(side_y, use_side: bool, mode: dict, n: int):
+    """The kernel from rest at -0.5 deg, driven toward +, on an axis whose
+    drive gain is 25 % higher on the right side: per sample the motor
+    angle, the payload coordinate y and the motor rate."""
+    effect = Resonance({"coupling": 1.0, **mode}, DT)
+    cols = effect.substep_columns(DT, M)
+    sfx = np.array([[0.0, 1.0, *(float(cols[c]) for c in STATE_COLUMNS[2:])]])
+    kstate = np.zeros((1, 3))
+    ones = np.ones(4)
+    gain = np.array([1.25, 1.25, 1.0, 1.0]) * 2e-4  # R+, R-, L+, L-
+    params = RateParams(0.97 * ones, gain, 0.01 * ones, 0.005 * ones, 5.0 * ones)
+    table = _substep_table(params, 1, M)
+    u = np.full((1, n), 400.0)
+    w, ang = np.zeros(1), np.full(1, -0.5 * DEG)
+    out = [np.zeros((1, n)) for _ in range(3)] + [np.zeros((1, n), dtype=np.int64)]
+    angle, y, rate = np.full(n, ang[0]), np.zeros(n), np.zeros(n)
+    for k in range(1, n):
+        _advance_rows(table, u, np.zeros((1, n)), side_y, use_side, -1, k, k + 1, M, DT, True,
+                      True, True, w, ang, *out, 0, 1, sfx, kstate)  # fmt: skip
+        angle[k], y[k], rate[k] = ang[0], kstate[0, 1], w[0]
+    return angle, y, rate, 1.0 + cols["payload_ratio"]
+
+
+def test_the_side_of_a_two_mass_axis_is_the_motor_sides_when_the_angle_follows_the_payload():
+    # The measured (fused) angle follows the gyro's integral, the payload's
+    # angle, within the fusion's window: motor angle + (r + c) y. Fed that,
+    # the kernel must switch sides where the motor side crosses 0 (its own
+    # angle, `use_side` False), not where the ringing payload does.
+    mode = {"freq_hz": 30.0, "damping_ratio": 0.02, "payload_fraction": 0.25}
+    n = 120
+    angle, y, rate, k = _crossing(np.zeros((1, 1)), False, mode, n)
+    assert angle[0] < 0.0 < angle[-1]
+    payload_angle = (angle + k * y)[None, :]
+    cross = np.flatnonzero(angle > 0)[0]
+    assert (
+        np.sign(payload_angle[0, cross - 3 : cross + 3]).tolist()
+        != np.sign(angle[cross - 3 : cross + 3]).tolist()
+    ), "the example must have the payload cross 0 at another sample"
+    _, _, fed, _ = _crossing(payload_angle, True, mode, n)
+    # Linear interpolation of the payload angle inside a sample is all that
+    # separates the two: far under the 25 % drive step of a wrong side.
+    assert np.max(np.abs(fed - rate)) < 1e-3 * np.max(np.abs(rate))

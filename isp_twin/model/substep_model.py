@@ -350,6 +350,12 @@ def _advance_group(
                 # also depends on the direction (`law.side_of`).
                 if use_side:
                     a = y0[b] if j == 0 else y0[b] + fj * dy[b]
+                    if payload:
+                        # The measured angle follows the gyro's integral,
+                        # the payload's angle, within the fusion's window;
+                        # the side is the motor side's: less the payload's
+                        # deflection (r + c) y.
+                        a -= (sfx[i, 2] + sfx[i, 15]) * yp[b]
                 else:
                     a = y[b]
                 if wb != 0.0:
