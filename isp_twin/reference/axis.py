@@ -355,7 +355,7 @@ def simulate(
                     if torque_fns:
                         drive_mid += angle_torque(th + half) - angle_torque(th)
                     if payload is not None:
-                        xm, xdm = payload_step(x, xd, 0.5 * left, (w - w_new) / left)
+                        xm, xdm = payload_step(x, xd, 0.5 * left, (w_new - w) / left)
                         drive_mid += kp * (xm - x) + cp * (xdm - xd)
                     friction = stribeck(r, 0.5 * (w + w_new))
                     w_inf = (drive_mid - sgn * friction - sigma0 * z_mid) / eta[r]
