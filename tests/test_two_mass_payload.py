@@ -15,7 +15,12 @@ from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.effects.resonance import Resonance
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
-from isp_twin.model.substep_model import STATE_COLUMNS, _advance_rows, _substep_table
+from isp_twin.model.substep_model import (
+    SIDE_FOLLOWS_GYRO,
+    STATE_COLUMNS,
+    _advance_rows,
+    _substep_table,
+)
 from isp_twin.reference import design_experiment
 from isp_twin.units import DEG
 
@@ -101,7 +106,7 @@ def test_the_true_two_mass_payload_of_reference_axes_is_within_the_issues_bound(
         assert error / sigma < 1.5, name
 
 
-def _crossing(side_y, use_side: bool, mode: dict, n: int):
+def _crossing(side_y, use_side: int, mode: dict, n: int):
     """The kernel from rest at -0.5 deg, driven toward +, on an axis whose
     drive gain is 25 % higher on the right side: per sample the motor
     angle, the payload coordinate y and the motor rate."""
@@ -128,10 +133,11 @@ def test_the_side_of_a_two_mass_axis_is_the_motor_sides_when_the_angle_follows_t
     # The measured (fused) angle follows the gyro's integral, the payload's
     # angle, within the fusion's window: motor angle + (r + c) y. Fed that,
     # the kernel must switch sides where the motor side crosses 0 (its own
-    # angle, `use_side` False), not where the ringing payload does.
+    # angle, `use_side` 0), not where the ringing payload does. A motor-side
+    # angle (the raw resolver, `use_side` 1) is taken as it is.
     mode = {"freq_hz": 30.0, "damping_ratio": 0.02, "payload_fraction": 0.25}
     n = 120
-    angle, y, rate, k = _crossing(np.zeros((1, 1)), False, mode, n)
+    angle, y, rate, k = _crossing(np.zeros((1, 1)), 0, mode, n)
     assert angle[0] < 0.0 < angle[-1]
     payload_angle = (angle + k * y)[None, :]
     cross = np.flatnonzero(angle > 0)[0]
@@ -139,7 +145,9 @@ def test_the_side_of_a_two_mass_axis_is_the_motor_sides_when_the_angle_follows_t
         np.sign(payload_angle[0, cross - 3 : cross + 3]).tolist()
         != np.sign(angle[cross - 3 : cross + 3]).tolist()
     ), "the example must have the payload cross 0 at another sample"
-    _, _, fed, _ = _crossing(payload_angle, True, mode, n)
-    # Linear interpolation of the payload angle inside a sample is all that
-    # separates the two: far under the 25 % drive step of a wrong side.
-    assert np.max(np.abs(fed - rate)) < 1e-3 * np.max(np.abs(rate))
+    _, _, fused, _ = _crossing(payload_angle, SIDE_FOLLOWS_GYRO, mode, n)
+    _, _, resolver, _ = _crossing(angle[None, :], 1, mode, n)
+    # Linear interpolation of the angles inside a sample is all that
+    # separates them: far under the 25 % drive step of a wrong side.
+    for fed in (fused, resolver):
+        assert np.max(np.abs(fed - rate)) < 1e-3 * np.max(np.abs(rate))

@@ -71,6 +71,9 @@ class RunStack:
             the rest rule (`stack_runs`); None: ``omega[:, 0]``.
         rest_level: a first rate at most this large is rest [rad/s], (R,);
             None: none is.
+        side_follows_gyro: ``angle`` is the fused angle, which follows the
+            gyro's integral within its window (`simulate_substeps`); False:
+            a motor-side angle (the raw resolver).
     """
 
     names: tuple[str, ...]
@@ -84,6 +87,7 @@ class RunStack:
     integration: Integration = DEFAULT_INTEGRATION
     first_reading: np.ndarray | None = None
     rest_level: np.ndarray | None = None
+    side_follows_gyro: bool = True
 
     @property
     def n_samples(self) -> int:
@@ -119,6 +123,7 @@ def stack_runs(
     gyro_average: bool = False,
     integration: Integration = DEFAULT_INTEGRATION,
     rest: float | None = None,
+    side_follows_gyro: bool = True,
 ) -> RunStack:
     """Stack runs (`isp_twin.identification.measured.MeasuredData` or anything with
     ``name, u, omega, angle, dt``).
@@ -128,7 +133,7 @@ def stack_runs(
             and that angle-dependent effects see.
         warmup: samples at each run's start that do not count (at least 1:
             sample 0 is the initial state).
-        side, gyro_average, integration: as `RunStack`'s.
+        side, gyro_average, integration, side_follows_gyro: as `RunStack`'s.
         rest: a first measured rate at most this large [rad/s] starts the
             model at rest; None: at most three noise standard deviations
             (the noise from the run's first 2000 samples).
@@ -168,7 +173,18 @@ def stack_runs(
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
     return RunStack(
-        names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels
+        names,
+        u,
+        omega,
+        angle,
+        mask,
+        dt,
+        side,
+        gyro_average,
+        integration,
+        first,
+        levels,
+        side_follows_gyro,
     )
 
 
@@ -236,6 +252,7 @@ def predict(
         side=stack.side,
         integration=stack.integration,
         gyro_average=stack.gyro_average,
+        side_follows_gyro=stack.side_follows_gyro,
     )
     return _diverged_held(resp).mapped(lambda a: a.reshape(p, r, n))
 

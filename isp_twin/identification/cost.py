@@ -48,6 +48,7 @@ def run_stack(
         gyro_average=timing.gyro_average,
         integration=integration,
         rest=rest_rate_deg_s * DEG,
+        side_follows_gyro=side_source == "measured",
     )
 
 

@@ -181,6 +181,9 @@ STATE_COLUMNS: tuple[str, ...] = (
     *(f"clamped_{c}" for c in ("00", "01", "10", "11")),
     "gyro_coupling",
 )
+#: `use_side` of the kernel when the measured angle is the fused one (`simulate_substeps`).
+SIDE_FOLLOWS_GYRO = 2
+
 #: Defaults of the columns no effect gives (no bristle force).
 _COLUMN_DEFAULTS = {"bristle_drive": 0.0, "presliding_rad": 1.0}
 
@@ -293,7 +296,9 @@ def _advance_group(
     table: (S, 4, 6) per-sub-step (p, c·gain, c·static, c·coulomb, alpha,
     effect factor) (`_substep_table`); u, extra: (S, N) per-sample command
     and extra drive [rate form per sample]; side_y: (S, N) angle choosing the
-    half-plane (used when use_side); fixed_side: -1 none, else the side index; frac:
+    half-plane, used when use_side is 1 (a motor-side angle: the resolver) or
+    `SIDE_FOLLOWS_GYRO` (the fused angle, which follows the gyro's integral
+    within its window); 0: the model's own angle; fixed_side: -1 none, else the side index; frac:
     (m,) j/m; scratch: (8, >= rows) floats, idx: (>= rows,) ints (work space,
     allocated once per call of `_advance_rows`: per-sample calls are many);
     sfx: (S, 2) bristle drive [rate per sample] and pre-sliding distance
@@ -350,10 +355,10 @@ def _advance_group(
                 # also depends on the direction (`law.side_of`).
                 if use_side:
                     a = y0[b] if j == 0 else y0[b] + fj * dy[b]
-                    if payload:
-                        # The measured angle follows the gyro's integral,
-                        # the payload's angle, within the fusion's window;
-                        # the side is the motor side's: less the payload's
+                    if payload and use_side == SIDE_FOLLOWS_GYRO:
+                        # The fused angle follows the gyro's integral, the
+                        # payload's angle, within the fusion's window; the
+                        # side is the motor side's: less the payload's
                         # deflection (r + c) y.
                         a -= (sfx[i, 2] + sfx[i, 15]) * yp[b]
                 else:
@@ -660,6 +665,7 @@ def simulate_substeps(
     side: int | None = None,
     integration: Integration = DEFAULT_INTEGRATION,
     gyro_average: bool = False,
+    side_follows_gyro: bool = False,
 ) -> AxisResponse:
     """Simulate the sub-stepped Eq. 6 for a batch of parameter sets.
 
@@ -676,6 +682,12 @@ def simulate_substeps(
         side: fix the half-plane (`SIDE_R` or `SIDE_L`) whatever the angle.
         integration: sub-steps and options (`Integration`).
         gyro_average: the reading is the rate averaged over the sample.
+        side_follows_gyro: `angle_measured` is the fused angle, which follows
+            the gyro's integral within the fusion's window: with a two-mass
+            payload the payload's angle, from which the kernel takes the
+            payload's deflection off to get the motor side's
+            (`isp_twin.identification.side_angle.fused_angle`); False: a
+            motor-side angle (the resolver's).
 
     Returns:
         `AxisResponse` (shapes (N,) for unbatched params, else (P, N)):
@@ -696,7 +708,7 @@ def simulate_substeps(
     _, _, point, reading, angle, regime = outputs
     sfx, kstate, effects = _substep_effects(effects, n_rows, dt, m)
     args = (m, float(dt), *integration.kernel_flags())
-    use_side = angle_measured is not None
+    use_side = 0 if angle_measured is None else SIDE_FOLLOWS_GYRO if side_follows_gyro else 1
     at_y = _torque_angle(side_y, integration.midstep_angle and use_side, effects)
     commands, torques, u_eff, extra = _effects_before_the_run(effects, u_rows, at_y, use_side, dt)
     if not (commands or torques):
