@@ -72,8 +72,10 @@ class RunStack:
         rest_level: a first rate at most this large is rest [rad/s], (R,);
             None: none is.
         side_follows_gyro: ``angle`` is the fused angle, which follows the
-            gyro's integral within its window (`simulate_substeps`); False:
-            a motor-side angle (the raw resolver).
+            gyro's integral within its window: with a two-mass payload the
+            payload's angle, whose deflection the sub-stepped model takes
+            off for the motor side's (`simulate_substeps`); False: a
+            motor-side angle (the raw resolver).
     """
 
     names: tuple[str, ...]
@@ -141,15 +143,7 @@ def stack_runs(
     Raises:
         DataError: no runs, or runs with different sample periods.
     """
-    if not runs:
-        raise DataError("no data sets given")
-    dt = float(runs[0].dt)
-    for r in runs:
-        if abs(float(r.dt) - dt) > SAMPLE_PERIOD_TOLERANCE * dt:
-            raise DataError(
-                f"{r.name}: sample period {r.dt} s differs from {runs[0].name}'s {dt} s; "
-                "all data sets of one fit need the same period"
-            )
+    dt = _common_period(runs)
     n = max(len(r.u) for r in runs)
     shape = (len(runs), n)
     u, omega, angle = np.zeros(shape), np.zeros(shape), np.zeros(shape)
@@ -172,20 +166,26 @@ def stack_runs(
         if abs(r.omega[0]) <= level:
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
-    return RunStack(
-        names,
-        u,
-        omega,
-        angle,
-        mask,
-        dt,
-        side,
-        gyro_average,
-        integration,
-        first,
-        levels,
-        side_follows_gyro,
-    )
+    stacked = (names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels)
+    return RunStack(*stacked, side_follows_gyro)
+
+
+def _common_period(runs: Sequence) -> float:
+    """The runs' sample period [s].
+
+    Raises:
+        DataError: no runs, or runs with different sample periods.
+    """
+    if not runs:
+        raise DataError("no data sets given")
+    dt = float(runs[0].dt)
+    for r in runs:
+        if abs(float(r.dt) - dt) > SAMPLE_PERIOD_TOLERANCE * dt:
+            raise DataError(
+                f"{r.name}: sample period {r.dt} s differs from {runs[0].name}'s {dt} s; "
+                "all data sets of one fit need the same period"
+            )
+    return dt
 
 
 def _initial_rates(stack: RunStack, effects: Sequence, p: int) -> np.ndarray:

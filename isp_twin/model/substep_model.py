@@ -682,12 +682,7 @@ def simulate_substeps(
         side: fix the half-plane (`SIDE_R` or `SIDE_L`) whatever the angle.
         integration: sub-steps and options (`Integration`).
         gyro_average: the reading is the rate averaged over the sample.
-        side_follows_gyro: `angle_measured` is the fused angle, which follows
-            the gyro's integral within the fusion's window: with a two-mass
-            payload the payload's angle, from which the kernel takes the
-            payload's deflection off to get the motor side's
-            (`isp_twin.identification.side_angle.fused_angle`); False: a
-            motor-side angle (the resolver's).
+        side_follows_gyro: `angle_measured` follows the gyro (`RunStack`).
 
     Returns:
         `AxisResponse` (shapes (N,) for unbatched params, else (P, N)):
@@ -705,7 +700,7 @@ def simulate_substeps(
     u_rows, side_y = _input_rows(u, angle_measured, n_rows, n)
     fixed = -1 if check_side(side) is None else side
     outputs = _state_and_outputs(n_rows, n, omega0, angle0)
-    _, _, point, reading, angle, regime = outputs
+    _, _, point, reading, _, _ = outputs
     sfx, kstate, effects = _substep_effects(effects, n_rows, dt, m)
     args = (m, float(dt), *integration.kernel_flags())
     use_side = 0 if angle_measured is None else SIDE_FOLLOWS_GYRO if side_follows_gyro else 1
@@ -716,7 +711,12 @@ def simulate_substeps(
     else:
         kernel_args = (table, side_y, use_side, fixed, args, outputs, sfx, kstate)
         _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at_y)
-    out = _measured(reading if gyro_average else point, effects)
+    return _response(_measured(reading if gyro_average else point, effects), outputs, single)
+
+
+def _response(out, outputs, single: bool) -> AxisResponse:
+    """The reading `out` with the point rate (where they differ), angle and regime."""
+    _, _, point, _, angle, regime = outputs
     true = None if out is point else point
     if single:
         return AxisResponse(out[0], angle[0], regime[0], None if true is None else true[0])
