@@ -298,8 +298,9 @@ def _advance_group(
     and extra drive [rate form per sample]; side_y: (S, N) angle choosing the
     half-plane, used when use_side is 1 (a motor-side angle: the resolver) or
     `SIDE_FOLLOWS_GYRO` (the fused angle, which follows the gyro's integral
-    within its window); 0: the model's own angle; fixed_side: -1 none, else the side index; frac:
-    (m,) j/m; scratch: (8, >= rows) floats, idx: (>= rows,) ints (work space,
+    within its window); 0: the model's own angle; fixed_side: -1 none, else
+    the side index; frac: (m,) j/m; scratch: (10, >= rows) floats, idx:
+    (>= rows,) ints (work space,
     allocated once per call of `_advance_rows`: per-sample calls are many);
     sfx: (S, 2) bristle drive [rate per sample] and pre-sliding distance
     [rad] of LuGre integrated in the sub-steps, (S, 16) with a two-mass
