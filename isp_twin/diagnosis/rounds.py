@@ -373,8 +373,7 @@ def _offset_alternative(data, st, verdicts, top: str) -> list[Verdict]:
     """
     if top not in WITH_CONSTANT_PART or OFFSET not in st.fits or OFFSET in st.failed:
         return verdicts
-    angle, rate = data.train.angle[data.train.mask], data.train.omega[data.train.mask]
-    mean = float(np.mean(effect_class(top)(dict(st.fits[top].params)).acceleration(angle, rate)))
+    mean = float(np.mean(_training_torque(data.train, top, st.fits[top].params)))
     lo, hi = effect_class(OFFSET).bounds["accel_rad_s2"]
     o = _refit_globally(data, st.fits[OFFSET], {"accel_rad_s2": float(np.clip(mean, lo, hi))})
     if not o.sse < st.fits[OFFSET].sse:
@@ -463,13 +462,19 @@ def _alike_stage(data, st, verdicts) -> list[Verdict]:
     return st.judged_again(verdicts, better)
 
 
+def _training_torque(train: RunStack, name: str, params) -> np.ndarray:
+    """Effect `name`'s acceleration with `params` over the training samples
+    that count, at their measured angle and rate [rad/s^2]."""
+    angle, rate = train.angle[train.mask], train.omega[train.mask]
+    return np.asarray(effect_class(name)(dict(params)).acceleration(angle, rate), dtype=float)
+
+
 def _matched_start(train, leader: CandidateFit, name: str) -> dict[str, float]:
     """Effect `name`'s parameters that best match `leader`'s effect
     acceleration over the training angles: `name`'s `guesses` on the
     leader's acceleration as the residual, clipped to its bounds."""
-    angle = train.angle[train.mask]
-    rate = train.omega[train.mask]
-    accel = effect_class(leader.name)(dict(leader.params)).acceleration(angle, rate)
+    angle, rate = train.angle[train.mask], train.omega[train.mask]
+    accel = _training_torque(train, leader.name, leader.params)
     n = angle.size
     ctx = ResidualContext(
         u=train.u[train.mask],
@@ -580,10 +585,9 @@ def _indistinguishable(train: RunStack, fit: CandidateFit, other: str, floor: fl
     is a spring: benchmark cable spring seed 18 (a 13 deg travel) answered an
     unbalance of phase 3.11 rad at 1.13 noise floors, its spring refit at 1.59
     (docs/diagnosis.md "Stop 21")."""
-    angle, rate = train.angle[train.mask], train.omega[train.mask]
-    mine = effect_class(fit.name)(dict(fit.params)).acceleration(angle, rate)
-    theirs = effect_class(other)(_matched_start(train, fit, other)).acceleration(angle, rate)
-    dev = 0.5 * float(np.ptp(np.asarray(mine) - np.asarray(theirs)))
+    mine = _training_torque(train, fit.name, fit.params)
+    theirs = _training_torque(train, other, _matched_start(train, fit, other))
+    dev = 0.5 * float(np.ptp(mine - theirs))
     pole = float(np.max(RateParams.from_vector(fit.rate_vector).pole))
     return dev * train.dt / (1.0 - pole) < floor
 
