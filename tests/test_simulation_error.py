@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from isp_twin.estimation.least_squares import FitStatus, trust_region
-from isp_twin.estimation.simulation_error import residuals, stack_runs
+from isp_twin.estimation.simulation_error import residuals, residuals_many, stack_runs
 from isp_twin.identification.cost import residuals as eq9_residuals
 from isp_twin.identification.cost import rmse, run_stack
 from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.effects import EFFECTS
 from isp_twin.model.parameters import RateParams
 from isp_twin.units import DEG
 
@@ -55,6 +56,40 @@ def test_a_cost_does_not_depend_on_the_batch_it_is_in(runs_and_rate):
         alone = residuals(stack, batch[k : k + 1])
         np.testing.assert_array_equal(alone[0], together[k])
         assert float(alone[0] @ alone[0]) == float(together[k] @ together[k])
+
+
+@pytest.mark.parametrize("name", sorted(EFFECTS))
+def test_an_effect_at_its_null_parameters_changes_no_bit(runs_and_rate, name):
+    """Every library effect at its ``null`` parameters gives the residuals of
+    the model without it, bit for bit: what lets `residuals_many` simulate
+    each request with its own effect alone."""
+    runs, rate = runs_and_rate
+    stack = stack_runs(runs, warmup=1)
+    batch = _spread(rate, 3)
+    cls = EFFECTS[name]
+    null = {p: np.full(3, float(cls.null[p])) for p in cls.param_names}
+    np.testing.assert_array_equal(residuals(stack, batch, [(name, null)]), residuals(stack, batch))
+
+
+def test_requests_with_different_effects_are_each_their_own_model(runs_and_rate):
+    """`residuals_many` returns, per request, the residuals of that request's
+    rate vectors with its own effect alone, in the order asked."""
+    runs, rate = runs_and_rate
+    stack = stack_runs(runs, warmup=1)
+    batch = _spread(rate, 4)
+    cog = {"amplitude_rad_s2": np.array([3.0, 5.0]), "period_rad": np.array([0.1, 0.2])}
+    cog.update({p: np.array([0.0, 0.0]) for p in EFFECTS["cogging"].param_names if p not in cog})
+    off = {"accel_rad_s2": np.array([2.0])}
+    requests = [
+        (batch[:2], "cogging", cog),
+        (batch[2:3], None, {}),
+        (batch[3:], "torque_offset", off),
+    ]
+    got = residuals_many(stack, requests)
+    np.testing.assert_array_equal(got[0], residuals(stack, batch[:2], [("cogging", cog)]))
+    np.testing.assert_array_equal(got[1], residuals(stack, batch[2:3]))
+    np.testing.assert_array_equal(got[2], residuals(stack, batch[3:], [("torque_offset", off)]))
+    assert not np.array_equal(got[0][0], residuals(stack, batch[:1])[0])
 
 
 def test_identify_counts_every_sample_after_the_first_and_diagnose_leaves_a_warmup(runs_and_rate):
