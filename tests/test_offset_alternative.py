@@ -69,3 +69,40 @@ def test_a_leader_without_a_constant_part_or_a_failed_offset_leaves_it(monkeypat
     st = _State({"unbalance": _fit("unbalance", {}, 1.0),
                  "torque_offset": _fit("torque_offset", {}, 5.0)}, failed={"torque_offset"})  # fmt: skip
     assert rounds._offset_alternative(_data(), st, ["v"], "unbalance") == ["v"]
+
+
+@pytest.mark.parametrize(("leader", "restarted"), [("cable_spring", ["unbalance", "torque_offset"]),
+                                                   ("cogging", None)])  # fmt: skip
+def test_a_leader_with_a_constant_part_restarts_the_offset_from_its_own_fit(
+    monkeypatch, leader, restarted
+):
+    """`_alike_stage`: beside the alike partner, the constant torque is
+    refitted from the leader's rate vector, started at the leader's mean
+    torque over the training angles (benchmark torque_offset seed 11
+    answered a cable spring flat over its travel)."""
+    data = _data()
+    data.train.u = 0 * data.train.angle
+    data.train.dt = 1e-3
+    data.max_iter = 8
+    spring = {"stiffness_1_s2": 0.5, "offset_rad_s2": -0.36}
+    rate = np.arange(20.0)
+    fits = {n: _fit(n, {}, 5.0) for n in ("cable_spring", "unbalance", "torque_offset", "cogging")}
+    fits[leader] = SimpleNamespace(name=leader, params=spring, sse=1.0, rate_vector=rate, fixed=())
+    calls = []
+
+    def refit(stack, x, names, fixed, starts, max_iter, rate_starts):
+        calls.append((list(names), starts, rate_starts))
+        return {n: _fit(n, starts[n], 0.5) for n in names}
+
+    monkeypatch.setattr(rounds, "fit_candidates", refit)
+    verdicts = [SimpleNamespace(name=leader, significant=True)]
+    rounds._alike_stage(data, _State(fits), verdicts)
+    if restarted is None:
+        assert calls == []
+        return
+    names, starts, rate_starts = calls[0]
+    assert names == restarted
+    angle = data.train.angle[data.train.mask]
+    want = float(np.mean(-0.5 * angle - 0.36))
+    assert starts["torque_offset"] == {"accel_rad_s2": pytest.approx(want, rel=1e-9)}
+    assert all(rate_starts[n] is rate for n in names)
