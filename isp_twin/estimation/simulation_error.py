@@ -308,16 +308,21 @@ def residuals_many(
     out: list[np.ndarray] = [np.empty(0)] * len(requests)
     for name, members in groups.items():
         xs = [np.atleast_2d(requests[i][0]) for i in members]
-        effects = []
-        if name:
-            cols = {
-                p: np.concatenate(
-                    [np.broadcast_to(requests[i][2][p], (x.shape[0],)) for i, x in zip(members, xs)]
-                ).astype(float)
-                for p in requests[members[0]][2]
-            }
-            effects.append((name, cols))
+        effects = [(name, _columns(name, [requests[i][2] for i in members], xs))] if name else []
         res = residuals(stack, np.concatenate(xs), effects, fixed)
         for i, part in zip(members, np.split(res, np.cumsum([x.shape[0] for x in xs])[:-1])):
             out[i] = part
     return out
+
+
+def _columns(name: str, params: Sequence[Mapping], xs: Sequence[np.ndarray]) -> dict:
+    """Effect `name`'s parameter columns over the rows of several requests
+    (`params[i]` broadcast over the rows of `xs[i]`)."""
+    from isp_twin.model.effects import effect_class
+
+    return {
+        p: np.concatenate(
+            [np.broadcast_to(q[p], (x.shape[0],)) for q, x in zip(params, xs)]
+        ).astype(float)
+        for p in effect_class(name).param_names
+    }
