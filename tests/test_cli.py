@@ -85,7 +85,7 @@ def test_open_loop_run_writes_json_and_recording(capsys, tmp_path):
     assert "11.98" in printed  # the paper's peak is shown beside the twin's
 
 
-def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
+def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path, ctrl_c_delivered):
     import os
     import signal
     import subprocess
@@ -113,6 +113,7 @@ def test_ctrl_c_leaves_a_recording_that_rerun_verifies(tmp_path):
             stderr=subprocess.PIPE,
             text=True,
             env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            preexec_fn=ctrl_c_delivered,
         )
         try:
             # "parameters ..." is printed just before the simulation starts.

@@ -289,7 +289,9 @@ def test_ctrl_c_while_recording_keeps_the_previous_complete_file(run, tmp_path, 
     verify_recording(target)
 
 
-def test_real_ctrl_c_while_recording_finishes_the_file_then_interrupts(run, tmp_path, monkeypatch):
+def test_real_ctrl_c_while_recording_finishes_the_file_then_interrupts(
+    run, tmp_path, monkeypatch, ctrl_c_delivered
+):
     log_signals = recording._log_signals
 
     def ctrl_c_then_log(*args, **kwargs):
