@@ -291,7 +291,8 @@ def residuals_many(
     The requests naming the same effect (or none) are simulated together,
     each group with its own effect alone: a row that carried every other
     group's effect at its ``null`` parameters cost what all of them cost
-    (diagnose's first refit of the whole library: 10 ms a row against 3).
+    (diagnose's first refit of the whole library: 9.9 ms a row of 2 x 6000
+    samples, 5.9 grouped; a bare row 3.8, a resonance row 9.8).
 
     Args:
         stack: the runs.
