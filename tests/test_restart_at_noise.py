@@ -1,0 +1,66 @@
+"""A fit at the noise on the training runs is refined once more from its own
+end (`Settings.restart_at_noise`, docs/identification.md "Stop 26").
+
+Reference clean seed 12 (the independent simulator, `isp_twin.reference`):
+the least squares from the data's start stops at about 1.02 noise sigmas on
+training, so the global search never ran, and held out the model is about
+two sigmas off; restarted from that end it goes on to the truth's basin.
+Seed 12 is one of the three axes (12, 15, 18) on which the restart was
+chosen: this pins the mechanism, the rates are the benchmark's.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from isp_twin.identification.cost import rmse
+from isp_twin.identification.fit import Settings, identify
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.model.parameters import load_parameters
+from isp_twin.reference import design_experiment
+from isp_twin.resources import default_parameters_path
+from isp_twin.units import DEG
+
+SEED = 12
+
+
+def _data(exp, name: str) -> MeasuredData:
+    r = exp.runs[name]
+    return MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])
+
+
+@pytest.fixture(scope="module")
+def fits():
+    exp = design_experiment(SEED)
+    train = [_data(exp, "train1"), _data(exp, "train2")]
+    held = [_data(exp, "heldout")]
+    prior = load_parameters(default_parameters_path()).axis("inner_az")
+    sigma = exp.truth()["noise_sigma_deg_s"] * DEG
+    out = {}
+    for restart in (False, True):
+        res = identify(train, prior, Settings(restart_at_noise=restart))
+        rate = res.rate
+        errors = [
+            float(rmse(rate, [d], timing=res.timing, integration=res.integration) / sigma)
+            for d in (*train, *held)
+        ]
+        out[restart] = (res, errors)
+    return out
+
+
+def test_without_the_restart_the_fit_stops_at_the_noise_in_the_wrong_basin(fits):
+    res, errors = fits[False]
+    assert max(errors[:2]) < Settings().converged_ratio  # at the noise: no global search
+    assert errors[2] > 1.5
+
+
+def test_restarted_it_reaches_the_noise_held_out(fits):
+    res, errors = fits[True]
+    assert max(errors) <= 1.3
+    # A restart can only keep or lower the training cost.
+    assert res.cost <= fits[False][0].cost
+
+
+def test_the_restart_is_stated_in_the_status(fits):
+    assert "least squares from its own end" in fits[True][0].status
+    assert "least squares from its own end" not in fits[False][0].status
