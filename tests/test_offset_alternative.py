@@ -106,3 +106,33 @@ def test_a_leader_with_a_constant_part_restarts_the_offset_from_its_own_fit(
     want = float(np.mean(-0.5 * angle - 0.36))
     assert starts["torque_offset"] == {"accel_rad_s2": pytest.approx(want, rel=1e-9)}
     assert all(rate_starts[n] is rate for n in names)
+
+
+@pytest.mark.parametrize(("own", "offset_rival"), [("cable_spring", True), ("unbalance", True),
+                                                   ("cogging", False)])  # fmt: skip
+def test_the_read_out_round_has_the_offset_beside_a_torque_with_a_constant_part(
+    monkeypatch, own, offset_rival
+):
+    """`search._rival_starts`: judged again at its own read-out, a tentative
+    cable spring or unbalance has the constant torque among its rivals even
+    where the offset was not significant in the first round, so that round
+    can restart it from the leader (benchmark torque_offset seed 14)."""
+    from isp_twin.diagnosis import search
+
+    names = ("cable_spring", "unbalance", "cogging", "lugre", "torque_offset")
+    fits = {n: SimpleNamespace(effects=lambda n=n: (n,)) for n in names}
+    verdicts = [SimpleNamespace(name=n, significant=n in ("cable_spring", "unbalance", "cogging"))
+                for n in names]  # fmt: skip
+    diag = SimpleNamespace(rounds=[SimpleNamespace(verdicts=verdicts, fits=fits)])
+    held = []
+
+    def identify_held(data, effects, timing, generations):
+        held.append(effects[-1])
+        return SimpleNamespace(vector=np.zeros(20), effects=(SimpleNamespace(name=effects[-1]),))
+
+    monkeypatch.setattr(search, "identify_held", identify_held)
+    again = SimpleNamespace(vector=np.ones(20), timing=None, effects=(SimpleNamespace(name=own),))
+    starts = search._rival_starts(diag, None, again)
+    assert ("torque_offset" in starts) is offset_rival
+    assert list(starts)[0] == own
+    assert len([n for n in held if n != "torque_offset"]) <= search.READ_OUT_RIVALS

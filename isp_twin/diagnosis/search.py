@@ -86,7 +86,9 @@ from isp_twin.diagnosis.result import Diagnosis, rms_of
 from isp_twin.diagnosis.rounds import (
     ALIKE,
     COMMAND_EFFECTS,
+    OFFSET,
     TORQUE_GLOBAL,
+    WITH_CONSTANT_PART,
     diagnosis_round,
     equivalent_effects,
     identify_held,
@@ -269,13 +271,22 @@ def _rival_starts(diag: Diagnosis, data: DiagnosisData, again: IdentificationRes
     Judged alone at its own read-out, the tentative effect has no rival:
     on benchmark unbalance seed 6 a long-period cogging, tentative at the
     base's read-out, was adopted at 1.14 noise floors where the data hold an
-    unbalance (docs/diagnosis.md "Stop 21")."""
+    unbalance (docs/diagnosis.md "Stop 21").
+
+    Beside a torque with a constant part (`WITH_CONSTANT_PART`) the constant
+    torque is a rival too, whatever its first-round rank: the round restarts
+    it from the leader's fit (`rounds._alike_stage`). Benchmark torque_offset
+    seed 14 answered a cable spring flat over the travel (stiffness 0.0036
+    1/s^2) at this read-out, where the offset had no refit to restart
+    (docs/diagnosis.md "Stop 26")."""
     first = diag.rounds[0]
     own = again.effects[-1]
     alike = {b for a, b in ALIKE if a == own.name} | {a for a, b in ALIKE if b == own.name}
     rivals = [
         v.name for v in first.verdicts if v.name != own.name and (v.significant or v.name in alike)
     ][:READ_OUT_RIVALS]
+    if own.name in WITH_CONSTANT_PART and OFFSET in first.fits and OFFSET not in rivals:
+        rivals.append(OFFSET)
     starts = {own.name: (again.vector, own)}
     for n in rivals:
         res = identify_held(data, first.fits[n].effects(), timing=again.timing, generations=0)
