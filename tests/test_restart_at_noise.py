@@ -64,3 +64,26 @@ def test_restarted_it_reaches_the_noise_held_out(fits):
 def test_the_restart_is_stated_in_the_status(fits):
     assert "least squares from its own end" in fits[True][0].status
     assert "least squares from its own end" not in fits[False][0].status
+
+
+def test_diagnose_fits_without_the_restart(monkeypatch):
+    """`diagnose`'s fits keep identify's search as it was before the restart
+    (on benchmark input_delay seed 0 the restart turned a right answer
+    tentative: docs/diagnosis.md "Stop 26")."""
+    from types import SimpleNamespace
+
+    from isp_twin.diagnosis import rounds
+
+    seen = []
+    monkeypatch.setattr(rounds, "identify", lambda runs, ax, settings: seen.append(settings))
+    data = SimpleNamespace(
+        side_source="measured",
+        seed=0,
+        train=SimpleNamespace(integration=None),
+        runs=SimpleNamespace(raw=[]),
+        ax=SimpleNamespace(),
+    )
+    monkeypatch.setattr(rounds, "replace", lambda ax, effects: ax)
+    rounds.identify_held(data, (), timing=None, generations=0)
+    assert seen[0].restart_at_noise is False
+    assert seen[0].regime_spread is None

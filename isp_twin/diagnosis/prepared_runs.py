@@ -231,6 +231,7 @@ def read_out_timing(
                 integration=integration,
                 timing=timing,
                 regime_spread=None,  # Eq. 9 alone, as every diagnose fit (`identify_held`)
+                restart_at_noise=False,  # as `identify_held`
             ),
         )
         return base_id, base_id.timing
