@@ -38,6 +38,7 @@ from isp_twin.vocabulary import SIDE_L, SIDE_R
 __all__ = [
     "LIBRARY",
     "FIXED_SIDE",
+    "DIAGNOSE_FIT",
     "DiagnosisRuns",
     "DiagnosisData",
     "split_in_time",
@@ -47,6 +48,13 @@ __all__ = [
     "stacked",
     "given_held",
 ]
+
+#: How every diagnose fit calls `identify` (`rounds.identify_held` and the
+#: opt-in base search): Eq. 9 alone, no regime prior (it moved a leading
+#: input delay's refit into another basin, docs/diagnosis.md "Stop 19"), and
+#: no restart at the noise (it turned input delay seed 0 tentative,
+#: docs/diagnosis.md "Stop 26").
+DIAGNOSE_FIT = {"regime_spread": None, "restart_at_noise": False}
 
 #: The candidate effects, in report order: the registry's.
 LIBRARY: tuple[str, ...] = tuple(EFFECTS)
@@ -230,8 +238,7 @@ def read_out_timing(
                 seed=seed,
                 integration=integration,
                 timing=timing,
-                regime_spread=None,  # Eq. 9 alone, as every diagnose fit (`identify_held`)
-                restart_at_noise=False,  # as `identify_held`
+                **DIAGNOSE_FIT,
             ),
         )
         return base_id, base_id.timing

@@ -15,7 +15,7 @@ from isp_twin.diagnosis.candidates import (
     CandidateFit,
     fit_candidates,
 )
-from isp_twin.diagnosis.prepared_runs import DiagnosisData
+from isp_twin.diagnosis.prepared_runs import DIAGNOSE_FIT, DiagnosisData
 from isp_twin.diagnosis.residual import ResidualContext, noise_floor, residual_context
 from isp_twin.diagnosis.result import RoundResult, rms_of
 from isp_twin.diagnosis.selection import MIN_GAIN, Verdict, judge, select
@@ -716,22 +716,18 @@ def identify_held(data: DiagnosisData, effects, timing, **options) -> Identifica
     """`identify` on the training runs with `effects` held, at the read-out
     `timing` (None: chosen again); `options`: further `IdSettings` fields.
 
-    Without identify's regime prior: diagnose fits every model, base and
-    candidates, to Eq. 9 alone, and the prior moved the refit of a leading
-    input delay into another basin (reference input_delay seed 0: held-out
-    1.36 -> 11.6 noise floors with it; docs/diagnosis.md "Stop 19").
-
-    Without identify's restart at the noise (`IdSettings.restart_at_noise`)
-    too: on benchmark seeds 0-2 of every case it changed one answer, input
-    delay seed 0 right (1.32 noise floors held out) -> tentative (1.75), the
-    delay polished from the restarted rates ending higher on training
-    (docs/diagnosis.md "Stop 26")."""
+    As every diagnose fit (`DIAGNOSE_FIT`): without identify's regime prior
+    (reference input_delay seed 0: held-out 1.36 -> 11.6 noise floors with
+    it; docs/diagnosis.md "Stop 19") and without its restart at the noise
+    (`IdSettings.restart_at_noise`; input delay seed 0 right at 1.32 noise
+    floors -> tentative at 1.75 with it: the delay polished from the
+    restarted rates ended higher on training; docs/diagnosis.md "Stop 26")."""
     settings = IdSettings(
         side_source=data.side_source,
         seed=data.seed,
         timing=timing,
         integration=data.train.integration,
-        **{"regime_spread": None, "restart_at_noise": False, **options},
+        **{**DIAGNOSE_FIT, **options},
     )
     return identify(data.runs.raw, replace(data.ax, effects=tuple(effects)), settings)
 

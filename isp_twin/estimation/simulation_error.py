@@ -23,6 +23,7 @@ import numpy as np
 
 from isp_twin.errors import DataError
 from isp_twin.estimation.verdict import noise_floor_of
+from isp_twin.model.effects import effect_class
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.parameters import EffectSpec, RateParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
@@ -319,8 +320,6 @@ def residuals_many(
 def _columns(name: str, params: Sequence[Mapping], xs: Sequence[np.ndarray]) -> dict:
     """Effect `name`'s parameter columns over the rows of several requests
     (`params[i]` broadcast over the rows of `xs[i]`)."""
-    from isp_twin.model.effects import effect_class
-
     return {
         p: np.concatenate(
             [np.broadcast_to(q[p], (x.shape[0],)) for q, x in zip(params, xs)]
