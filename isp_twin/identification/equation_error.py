@@ -169,20 +169,28 @@ def _regression_rows(data, side_source, rest, effects) -> _Rows:
         w0, w1 = d.omega[:-1], d.omega[1:]
         y = side_angle(d, side_source)[:-1]
         u0, more = _effect_drive(d, y, effects)
-        w1 = w1 - more
+        # Motion, rest and breakaway are read from the measured rates; only
+        # the regression's target has the known effects taken out. Read
+        # from the target, a stuck axis held by a strong spring (the effect's
+        # rate change per sample above the rest level) counted as a
+        # breakaway, against the spring: reference cable spring seed 14
+        # (23.9 1/s^2) started regimes R+ and L- at no friction and no gain
+        # with the true spring held (docs/identification.md "Stop 27").
         moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
         # A breakaway moves the way the total drive (command and known
         # effects) pushes: its direction is that of the motion it starts.
         breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest)
         use = moving | breakaway
         regime = np.where(moving, regime_index(y, w0), regime_index(y, w1))
+        sgn = np.where(moving, np.sign(w0), np.sign(w1))
+        w1 = w1 - more
         parts.append(
             (
                 regime[use],
                 np.where(moving, w0, 0.0)[use],
                 w1[use],
                 u0[use],
-                np.where(moving, np.sign(w0), np.sign(w1))[use],
+                sgn[use],
                 np.where(moving, np.abs(w0), 0.0)[use],
                 breakaway[use].astype(float),
                 y[use],
