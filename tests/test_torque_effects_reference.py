@@ -189,6 +189,23 @@ def test_a_tentative_unbalance_is_judged_at_the_other_gyro_read_out(tmp_path):
     assert got["amplitude_rad_s2"] == pytest.approx(true["amplitude_rad_s2"], rel=0.1)
 
 
+# Cable spring seed 22 of the benchmark (a 14 ms axis) shaped the second
+# refit of `search._other_gyro_read_out` and the lower `FLIP_GAIN`
+# (docs/diagnosis.md "Stop 27"): the spring refitted from the point-sampled
+# rates at the averaged read-out fitted no better, where the rates
+# `identify` finds there with the spring held take the stiffness from 3 %
+# short to the truth's and the training cost 2.9 % lower; the round there
+# reaches the noise. A regression test, not its validation.
+def test_a_tentative_spring_is_refitted_at_the_other_gyro_read_out(tmp_path):
+    exp, d = _identified_then_diagnosed(tmp_path, 22, "cable_spring", ("cable_spring",))
+    true = exp.truth()["effects"][0]["params"]
+    assert d.selected_effect == "cable_spring"
+    assert d.timing.gyro_average
+    assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
+    got = dict(d.params_out.axes[d.axis].effects[0].params)
+    assert got["stiffness_1_s2"] == pytest.approx(true["stiffness_1_s2"], rel=0.01)
+
+
 # LuGre seeds 1 and 2 of the benchmark shaped the LuGre search of stop 23
 # (docs/diagnosis.md "Stop 23"): six starts refined with the friction levels
 # lowered by its bristle force (`Effect.refined_starts`,
