@@ -423,36 +423,16 @@ def _payload_stage(data, st, verdicts) -> list[Verdict]:
 
 def _global_cycles(data, g: CandidateFit) -> CandidateFit:
     """A global refit `g` refitted again from its own effect while the
-    training cost drops by `GLOBAL_GAIN`, at most `GLOBAL_CYCLES` times;
-    where a cycle stalls after one that gained, the effect is held once a
-    step further along that one's move (`_extrapolated`)."""
-    last = None
+    training cost drops by `GLOBAL_GAIN`, at most `GLOBAL_CYCLES` times."""
     for _ in range(GLOBAL_CYCLES):
         # Held at its start, the effect ends polished away from it, the
         # rate parameters still fitted to the start: identified again with
         # the polished effect held, while the training cost drops.
         again = _refit_globally(data, g)
-        if not again.sse < (1.0 - GLOBAL_GAIN) * g.sse and last is not None:
-            # Each cycle moves the effect part of the way to its end (a
-            # cable spring's stiffness about half the rest per cycle,
-            # docs/diagnosis.md "Stop 27"); where identify's global step
-            # lands in a worse basin the cycles stop short of it
-            # (benchmark LuGre seed 0 stopped at 0.099 against 0.051).
-            again = _refit_globally(data, g, _extrapolated(last, g))
         if not again.sse < (1.0 - GLOBAL_GAIN) * g.sse:
             break
-        last, g = g, again
+        g = again
     return g
-
-
-def _extrapolated(before: CandidateFit, after: CandidateFit) -> dict:
-    """`after`'s effect parameters moved on by `after - before`, within bounds."""
-    bounds = effect_class(after.name).bounds
-    out = {}
-    for k, v in after.params.items():
-        lo, hi = bounds.get(k, (-np.inf, np.inf))
-        out[k] = float(np.clip(2.0 * v - before.params[k], lo, hi))
-    return out
 
 
 def _reopen_stage(data, st, verdicts) -> list[Verdict]:
