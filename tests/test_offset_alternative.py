@@ -6,27 +6,13 @@ same footing (benchmark torque_offset seed 1 answered an unbalance flat to
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from round_state_double import RoundStateDouble
 
 from isp_twin.diagnosis import rounds
-
-
-@dataclass
-class _State:
-    fits: dict
-    failed: set = field(default_factory=set)
-    updated: dict = field(default_factory=dict)
-
-    def update(self, data, refits):
-        self.updated.update(refits)
-        self.fits.update(refits)
-
-    def judged_again(self, verdicts, again):
-        return verdicts + sorted(again)
 
 
 def _data():
@@ -44,7 +30,7 @@ def _fit(name, params, sse):
 def test_the_offset_is_held_at_the_leaders_mean_torque_and_kept_only_if_better(monkeypatch, better):
     data = _data()
     leader = {"amplitude_rad_s2": 0.8, "phase_rad": 1.4}
-    st = _State({"unbalance": _fit("unbalance", leader, 1.0),
+    st = RoundStateDouble({"unbalance": _fit("unbalance", leader, 1.0),
                  "torque_offset": _fit("torque_offset", {"accel_rad_s2": 0.0}, 5.0)})  # fmt: skip
     held = []
 
@@ -64,9 +50,11 @@ def test_the_offset_is_held_at_the_leaders_mean_torque_and_kept_only_if_better(m
 @pytest.mark.parametrize("leader", ["cogging", "lugre"])
 def test_a_leader_without_a_constant_part_or_a_failed_offset_leaves_it(monkeypatch, leader):
     monkeypatch.setattr(rounds, "_refit_globally", lambda *a: pytest.fail("refitted"))
-    st = _State({leader: _fit(leader, {}, 1.0), "torque_offset": _fit("torque_offset", {}, 5.0)})
+    st = RoundStateDouble(
+        {leader: _fit(leader, {}, 1.0), "torque_offset": _fit("torque_offset", {}, 5.0)}
+    )
     assert rounds._offset_alternative(_data(), st, ["v"], leader) == ["v"]
-    st = _State({"unbalance": _fit("unbalance", {}, 1.0),
+    st = RoundStateDouble({"unbalance": _fit("unbalance", {}, 1.0),
                  "torque_offset": _fit("torque_offset", {}, 5.0)}, failed={"torque_offset"})  # fmt: skip
     assert rounds._offset_alternative(_data(), st, ["v"], "unbalance") == ["v"]
 
@@ -96,7 +84,7 @@ def test_a_leader_with_a_constant_part_restarts_the_offset_from_its_own_fit(
 
     monkeypatch.setattr(rounds, "fit_candidates", refit)
     verdicts = [SimpleNamespace(name=leader, significant=True)]
-    rounds._alike_stage(data, _State(fits), verdicts)
+    rounds._alike_stage(data, RoundStateDouble(fits), verdicts)
     if restarted is None:
         assert calls == []
         return

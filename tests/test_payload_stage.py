@@ -6,32 +6,15 @@ truth's 0.21, 23 noise floors held out)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from round_state_double import RoundStateDouble
 
 from isp_twin.diagnosis import rounds
 
 MODE = {"freq_hz": 64.0, "damping_ratio": 0.04, "coupling": 0.97, "payload_fraction": 0.06}
-
-
-@dataclass
-class _State:
-    fits: dict
-    held_of: dict
-    base: SimpleNamespace
-    floor: float = 1.0
-    failed: set = field(default_factory=set)
-    updated: dict = field(default_factory=dict)
-
-    def update(self, data, refits):
-        self.updated.update(refits)
-        self.fits.update(refits)
-
-    def judged_again(self, verdicts, again):
-        return verdicts + sorted(again)
 
 
 def _fit(name, params, sse, bic):
@@ -42,7 +25,7 @@ def _state(held_rms=20.0, resonance_bic=-500.0, failed=()):
     fits = {"resonance": _fit("resonance", dict(MODE), 1.0, resonance_bic),
             "cogging": _fit("cogging", {}, 2.0, -100.0)}  # fmt: skip
     held = {n: [np.full(100, held_rms)] for n in fits}
-    return _State(fits, held, _fit("base", {}, 3.0, 0.0), failed=set(failed))
+    return RoundStateDouble(fits, held, _fit("base", {}, 3.0, 0.0), failed=set(failed))
 
 
 def _refits(monkeypatch, sse_of_fraction):
