@@ -2,8 +2,8 @@
 every candidate refitted and judged on held-out data (`_judged`), joint
 restarts of the leaders (`_joint_stage`), `identify`'s global step for a
 leading payload resonance at a grid of payload fractions (`_payload_stage`)
-and for a leading torque effect (`_torque_global_stage`), re-opened rate parameters
-(`_reopen_stage`), and the acceptance rule (`_acceptance`)."""
+and for a leading torque effect (`_torque_global_stage`), re-opened rate
+parameters (`_reopen_stage`), and the acceptance rule (`_acceptance`)."""
 
 from __future__ import annotations
 
