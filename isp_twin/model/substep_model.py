@@ -16,7 +16,9 @@ Per sub-step of length T/m, regime r (rate form per sample):
 
 the exact zero-order hold of ``J dw/dt = Km u - eta w - F`` over T/m with F
 held over the sub-step, so m sub-steps of a constant drive give exactly
-Eq. 6's sample (c -> 1 at m = 1). The command is held over the sample;
+Eq. 6's sample (c -> 1 at m = 1). The command is held over the sample (a
+fractional input delay switches it inside the sample, at the sub-step the
+switch falls in: `Effect.command_run_split`);
 effects (`isp_twin.model.effects`) are evaluated once per sample, at the angle that
 selects the half-plane and the rate at the sample's start, and their
 acceleration is held over its sub-steps like the command (their command and
@@ -290,6 +292,7 @@ def _advance_group(
     idx,
     sfx,
     kstate,
+    lead,
 ):  # pragma: no cover - compiled
     """Advance rows r_lo..r_hi-1 from sample k_lo-1 to k_hi-1 (writes columns k_lo..k_hi-1).
 
@@ -305,7 +308,11 @@ def _advance_group(
     sfx: (S, 2) bristle drive [rate per sample] and pre-sliding distance
     [rad] of LuGre integrated in the sub-steps, (S, 16) with a two-mass
     payload (`STATE_COLUMNS`), or (., 0): none; kstate: (S, 3) the bristle
-    deflection z [rad] and the payload's y [rad], y' [rad/s]. With a payload
+    deflection z [rad] and the payload's y [rad], y' [rad/s]; lead: (S,)
+    the fraction of each sample over which the previous sample's command
+    still acts (a fractional input delay, `Effect.command_run_split`; the
+    sub-step the switch falls in gets the two commands' time-weighted mean).
+    With a payload
     w is the motor side's rate (friction, stick, resolver) and the gyro
     reads the payload's ``w + (r + c) y'`` (c = 1: a gyro on the payload).
 
@@ -327,6 +334,8 @@ def _advance_group(
     z = scratch[7]  # bristle deflection [rad]
     yp = scratch[8]  # payload coordinate and its rate
     ydp = scratch[9]
+    u_now = scratch[10]  # the sample's command and the one before it
+    u_before = scratch[11]
     bristles = sfx.shape[1] >= 2
     payload = sfx.shape[1] >= 16
     for b in range(nb):
@@ -341,6 +350,8 @@ def _advance_group(
         for b in range(nb):
             i = r_lo + b
             uk[b] = u[i, k - 1]
+            u_now[b] = uk[b]
+            u_before[b] = u[i, k - 2] if k >= 2 else u[i, 0]
             ek[b] = extra[i, k - 1]
             acc[b] = 0.5 * (w[b] + (sfx[i, 2] + sfx[i, 15]) * ydp[b] if payload else w[b])
             idx[b] = 0
@@ -352,6 +363,9 @@ def _advance_group(
             for b in range(nb):
                 i = r_lo + b
                 wb = w[b]
+                if lead[i] > 0.0:
+                    part = min(max(lead[i] * m - j, 0.0), 1.0)
+                    uk[b] = (1.0 - part) * u_now[b] + part * u_before[b]
                 # The angle choosing the half-plane; at exactly 0 the side
                 # also depends on the direction (`law.side_of`).
                 if use_side:
@@ -507,23 +521,29 @@ def _advance_rows(
     r_hi,
     sfx=None,
     kstate=None,
+    lead=None,
 ):  # pragma: no cover - compiled
     """`_advance_group` on rows r_lo..r_hi-1, `GROUP_ROWS` at a time (no
-    effect in the sub-steps when sfx, kstate are omitted)."""
+    effect in the sub-steps when sfx, kstate are omitted, the command held
+    over the whole sample when lead is)."""
     if sfx is None:
         sfx_, kstate_ = np.zeros((1, 0)), np.zeros((1, 0))
     else:
         sfx_, kstate_ = sfx, kstate
+    if lead is None:
+        lead_ = np.zeros(u.shape[0])
+    else:
+        lead_ = lead
     frac = np.empty(m)
     for j in range(m):
         frac[j] = j / m
-    scratch = np.zeros((10, GROUP_ROWS))
+    scratch = np.zeros((12, GROUP_ROWS))
     idx = np.zeros(GROUP_ROWS, dtype=np.int64)
     for g in range(r_lo, r_hi, GROUP_ROWS):
         g_hi = min(g + GROUP_ROWS, r_hi)
         _advance_group(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid,
                        split, by_drive, w_state, y_state, point, reading, angle, regime, g, g_hi, frac,
-                       scratch, idx, sfx_, kstate_)  # fmt: skip
+                       scratch, idx, sfx_, kstate_, lead_)  # fmt: skip
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -550,6 +570,7 @@ def _advance_blocks(
     n_blocks,
     sfx=None,
     kstate=None,
+    lead=None,
 ):  # pragma: no cover - compiled
     """`_advance_rows` on `n_blocks` blocks of rows in parallel (rows are independent)."""
     n_rows = u.shape[0]
@@ -557,7 +578,7 @@ def _advance_blocks(
         r_lo, r_hi = c * n_rows // n_blocks, (c + 1) * n_rows // n_blocks
         _advance_rows(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
                       by_drive, w_state, y_state, point, reading, angle, regime, r_lo, r_hi, sfx,
-                      kstate)  # fmt: skip
+                      kstate, lead)  # fmt: skip
 
 
 #: Sub-steps (rows x samples x m) below which a call stays on one thread:
@@ -567,7 +588,7 @@ PARALLEL_MIN_SUBSTEPS = 200_000
 
 
 def _advance(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
-             by_drive, w_state, y_state, point, reading, angle, regime, sfx, kstate):  # fmt: skip
+             by_drive, w_state, y_state, point, reading, angle, regime, sfx, kstate, lead):  # fmt: skip
     """Advance every row from sample k_lo-1 to k_hi-1 (`_advance_rows`), on all
     of numba's threads when the call is large enough; the same numbers either way."""
     n_rows = u.shape[0]
@@ -575,9 +596,9 @@ def _advance(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, m
     args = (table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
             by_drive, w_state, y_state, point, reading, angle, regime)  # fmt: skip
     if blocks > 1 and n_rows * (k_hi - k_lo) * m >= PARALLEL_MIN_SUBSTEPS:
-        _advance_blocks(*args, blocks, sfx, kstate)
+        _advance_blocks(*args, blocks, sfx, kstate, lead)
     else:
-        _advance_rows(*args, 0, n_rows, sfx, kstate)
+        _advance_rows(*args, 0, n_rows, sfx, kstate, lead)
 
 
 @njit(cache=True)
@@ -706,11 +727,13 @@ def simulate_substeps(
     args = (m, float(dt), *integration.kernel_flags())
     use_side = 0 if angle_measured is None else SIDE_FOLLOWS_GYRO if side_follows_gyro else 1
     at_y = _torque_angle(side_y, integration.midstep_angle and use_side, effects)
-    commands, torques, u_eff, extra = _effects_before_the_run(effects, u_rows, at_y, use_side, dt)
+    before_run = _effects_before_the_run(effects, u_rows, at_y, use_side, dt, m)
+    commands, torques, u_eff, extra, lead = before_run
     if not (commands or torques):
-        _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, *outputs, sfx, kstate)
+        _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, *outputs, sfx, kstate,
+                 lead)  # fmt: skip
     else:
-        kernel_args = (table, side_y, use_side, fixed, args, outputs, sfx, kstate)
+        kernel_args = (table, side_y, use_side, fixed, args, outputs, sfx, kstate, lead)
         _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at_y)
     return _response(_measured(reading if gyro_average else point, effects), outputs, single)
 
@@ -760,7 +783,7 @@ def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at
     """Effects that need the model's own state: evaluated per sample, their
     command and acceleration held over the sub-steps of one kernel call each
     (a torque of the measured angle at `at_y`)."""
-    table, side_y, use_side, fixed, args, outputs, sfx, kstate = kernel_args
+    table, side_y, use_side, fixed, args, outputs, sfx, kstate, lead = kernel_args
     w, y = outputs[0], outputs[1]
     n_rows, n = u_rows.shape
     if commands:
@@ -775,7 +798,7 @@ def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at
             at = at_y[:, k - 1] if use_side else y
             extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
         _advance_rows(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args,
-                      *outputs, 0, n_rows, sfx, kstate)  # fmt: skip
+                      *outputs, 0, n_rows, sfx, kstate, lead)  # fmt: skip
 
 
 def _substep_effects(effects, n_rows: int, dt: float, m: int):
@@ -831,16 +854,23 @@ def _batch_rows(params: RateParams, u, omega0, angle0, angle_measured) -> int:
     )
 
 
-def _effects_before_the_run(effects, u_rows, side_y, use_side, dt):
+def _effects_before_the_run(effects, u_rows, side_y, use_side, dt, m):
     """Evaluate what can be evaluated over the whole run before the kernel.
 
     Returns (command effects, torque effects) still to run per sample, the
-    command [digits] and the extra drive [rate per sample], (rows, N) each.
+    command [digits] and the extra drive [rate per sample], (rows, N) each,
+    and the kernel's `lead` (rows,): with sub-steps (m > 1) a command hook's
+    switch inside the sample (`Effect.command_run_split`), else 0 (Eq. 6:
+    the sample's mean command, `Effect.command_run`).
+
+    Raises:
+        ParameterError: two command hooks that each switch inside the sample.
     """
     n_rows, n = u_rows.shape
     commands = [e for e in effects if type(e).command is not Effect.command]
     torques = [e for e in effects if _is_torque(e)]
     extra = np.zeros((n_rows, n))
+    lead = np.zeros(n_rows)
     u_eff = u_rows
     if commands and not set(commands) & set(torques):
         # A command hook sees only the command: run it over the whole run
@@ -848,7 +878,7 @@ def _effects_before_the_run(effects, u_rows, side_y, use_side, dt):
         # calls them in the same order). The last sample drives no step.
         u_eff = u_rows.copy()
         for e in commands:
-            u_eff[:, : n - 1] = e.command_run(u_eff[:, : n - 1])
+            lead = _command_hook(e, u_eff, lead, m)
         commands = []
     if torques and use_side and not any(e.acceleration_uses_rate for e in torques):
         # Accelerations of the measured angle alone (cogging, springs,
@@ -858,7 +888,22 @@ def _effects_before_the_run(effects, u_rows, side_y, use_side, dt):
         at = side_y[:, : n - 1].T
         extra[:, : n - 1] = sum(e.acceleration(at, None) for e in torques).T * dt
         torques = []
-    return commands, torques, u_eff, extra
+    return commands, torques, u_eff, extra, lead
+
+
+def _command_hook(e: Effect, u_eff: np.ndarray, lead: np.ndarray, m: int) -> np.ndarray:
+    """Effect `e`'s command hook over the run in place on `u_eff` (the last
+    sample drives no step); the kernel's `lead`, `e`'s where it has one."""
+    n = u_eff.shape[1]
+    if m == 1:
+        u_eff[:, : n - 1] = e.command_run(u_eff[:, : n - 1])
+        return lead
+    u_eff[:, : n - 1], own = e.command_run_split(u_eff[:, : n - 1])
+    if not np.any(own):
+        return lead
+    if np.any(lead):
+        raise ParameterError(f"effect {e.name}: a second command switch inside the sample")
+    return np.broadcast_to(np.asarray(own, dtype=float), lead.shape).copy()
 
 
 def _measured(out: np.ndarray, effects) -> np.ndarray:

@@ -96,6 +96,13 @@ class Effect:
         """
         return _per_sample(self.command, u)
 
+    def command_run_split(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray | float]:
+        """`command_run` for a model that resolves the sample (sub-steps):
+        the command (rows, N) [digits] and the fraction of each sample [0, 1)
+        (a float or (rows,)) over which the *previous* sample's command still
+        acts. By default `command_run` and 0: a hook of the sample alone."""
+        return self.command_run(u), 0.0
+
     def measure_run(self, rate: np.ndarray) -> np.ndarray:
         """`measure` over a whole run: rate (rows, N) [rad/s] -> (rows, N),
         sample after sample by default (see `command_run`)."""

@@ -53,14 +53,23 @@ class InputDelay(Effect):
         """The same delay line over a whole run (rows, N) by indexing: sample
         k sees samples k - whole and k - whole - 1, the first one before the
         start."""
+        now, frac = self.command_run_split(u)
+        before = np.concatenate([now[:, :1], now[:, :-1]], axis=1)
+        return (1.0 - frac[:, None]) * now + frac[:, None] * before
+
+    def command_run_split(self, u):
+        """The delay line in whole samples, and the fraction of the sample
+        the command before still acts at its start: a delay of 4.4 samples
+        switches the held command 0.4 into the sample, which a sub-stepped
+        model resolves (a stick or breakaway inside the sample follows the
+        switch, not the sample's mean command). The mean over the sample is
+        `command_run`'s."""
         u = np.asarray(u, dtype=float)
         rows, n = u.shape
         whole = np.broadcast_to(self._whole, (rows,))[:, None]
-        frac = np.broadcast_to(self._frac, (rows,))[:, None]
         k = np.arange(n)[None, :]
         now = np.take_along_axis(u, np.maximum(k - whole, 0), axis=1)
-        before = np.take_along_axis(u, np.maximum(k - whole - 1, 0), axis=1)
-        return (1.0 - frac) * now + frac * before
+        return now, np.broadcast_to(self._frac, (rows,)).copy()
 
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
