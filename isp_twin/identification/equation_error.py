@@ -5,7 +5,7 @@ an effect's parameters (`joint_equation_error_estimate`)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -53,10 +53,12 @@ def equation_error_estimate(
     and w) cannot push the levels to unphysical values. Regimes with fewer
     than `min_samples` usable samples keep the prior. Known `effects` are
     driven by the measured angle and rate (`_effect_drive`) and taken out of
-    the regression. The rest level used to pick moving samples is at least
+    the regression; a known sensor error is taken out of the readings first
+    (`_true_readings`). The rest level used to pick moving samples is at least
     four times the rate noise (`rate_noise`): noisy samples of an axis at rest
     would otherwise enter as motion.
     """
+    data = _true_readings(data, effects)
     noise = rate_noise(data)
     rest = max(rest_rate_deg_s * DEG, 4.0 * noise)
     tables, speed = _regime_tables(data, side_source, rest, effects)
@@ -69,6 +71,29 @@ def equation_error_estimate(
         if table.shape[0] >= min_samples:
             x[r] = _fit_regime(table, grid)
     return RateParams.from_vector(RATE_LAYOUT.from_table(x))
+
+
+def _true_readings(data: Sequence[MeasuredData], effects: Sequence[EffectSpec]):
+    """The runs with the gyro readings mapped back to the rates they mean by
+    the known sensor errors among `effects` (`Effect.true_rate`, last hook
+    first), or `data` itself when there is none.
+
+    A gyro bias read as motion makes every sample at rest a moving one (a
+    bias of 0.48 deg/s against a rest level of 0.1 deg/s on benchmark
+    sensor_bias seed 1), and the regression then fits the bias into the
+    friction levels: `identify` with the true bias held ended at 1.35 and
+    1.52 noise floors on training, 6.4 held out.
+    """
+    mapping = [e for e in effects if effect_class(e.name).maps_readings]
+    if not mapping:
+        return data
+    out = []
+    for d in data:
+        omega = np.asarray(d.omega, dtype=float)
+        for spec in reversed(mapping):
+            omega = np.asarray(make_effect(spec, d.dt).true_rate(omega), dtype=float)
+        out.append(replace(d, omega=omega))
+    return out
 
 
 def _regime_tables(
