@@ -1,0 +1,71 @@
+"""Round 1's training leader gets `identify`'s global step after a leading
+command effect took one and left nothing significant at the noise
+(`rounds._training_leader_too`): benchmark unbalance seed 1, where a
+saturation took the step and lost its significance, and the unbalance (0.12
+of the base's training cost, 13.7 noise floors held out) was never refitted
+(docs/diagnosis.md "Stop 29")."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from round_state_double import RoundStateDouble
+
+from isp_twin.diagnosis import rounds
+
+
+def _fit(name, sse, bic):
+    return SimpleNamespace(name=name, params={}, sse=sse, bic=bic)
+
+
+def _verdict(name, significant):
+    return SimpleNamespace(name=name, significant=significant)
+
+
+def _state(saturation_held=12.0):
+    fits = {
+        "saturation": _fit("saturation", 0.156, -133565.0),
+        "unbalance": _fit("unbalance", 0.021, -157170.0),
+        "cogging": _fit("cogging", 0.171, -132444.0),
+    }
+    held = {"saturation": [np.full(50, saturation_held)], "unbalance": [np.full(50, 13.7)],
+            "cogging": [np.full(50, 12.4)]}  # fmt: skip
+    st = RoundStateDouble(fits, held, _fit("base", 0.182, -131757.0))
+    st.base_held = [np.full(50, 12.8)]
+    return st
+
+
+@pytest.fixture
+def stages(monkeypatch):
+    """`_torque_global_stage` recorded; every fit can be the effect."""
+    called = []
+
+    def stage(data, st, verdicts, starts, top):
+        called.append(top)
+        return verdicts + [top]
+
+    monkeypatch.setattr(rounds, "_torque_global_stage", stage)
+    monkeypatch.setattr(rounds, "_not_the_effect", lambda data, st, name: "")
+    return called
+
+
+def test_the_training_leader_gets_its_global_step(stages):
+    verdicts = [_verdict("saturation", False), _verdict("unbalance", False)]
+    out = rounds._training_leader_too(None, _state(), verdicts, {})
+    assert stages == ["unbalance"]
+    assert out[-1] == "unbalance"
+
+
+def test_not_when_a_significant_candidate_is_at_the_noise(stages):
+    verdicts = [_verdict("saturation", True), _verdict("unbalance", False)]
+    out = rounds._training_leader_too(None, _state(saturation_held=1.1), verdicts, {})
+    assert stages == []
+    assert out == verdicts
+
+
+def test_a_significant_candidate_above_the_noise_does_not_stop_it(stages):
+    verdicts = [_verdict("saturation", True), _verdict("unbalance", False)]
+    rounds._training_leader_too(None, _state(saturation_held=3.0), verdicts, {})
+    assert stages == ["unbalance"]
