@@ -311,10 +311,10 @@ def _advance_group(
     deflection z [rad] and the payload's y [rad], y' [rad/s]; lead: (S,)
     the fraction of each sample over which the previous sample's command
     still acts (a fractional input delay, `Effect.command_run_split`; the
-    sub-step the switch falls in gets the two commands' time-weighted mean).
-    With a payload
-    w is the motor side's rate (friction, stick, resolver) and the gyro
-    reads the payload's ``w + (r + c) y'`` (c = 1: a gyro on the payload).
+    sub-step the switch falls in gets the two commands' time-weighted
+    mean). With a payload w is the motor side's rate (friction, stick,
+    resolver) and the gyro reads the payload's ``w + (r + c) y'`` (c = 1: a
+    gyro on the payload).
 
     The rows are the innermost loop: one sub-step of a row is a chain of
     dependent operations (two exp of the Stribeck curve), so the processor
