@@ -338,6 +338,9 @@ def _advance_group(
     u_before = scratch[11]
     bristles = sfx.shape[1] >= 2
     payload = sfx.shape[1] >= 16
+    switching = False  # a command switch inside the sample in any row
+    for b in range(nb):
+        switching = switching or lead[r_lo + b] > 0.0
     for b in range(nb):
         w[b] = w_state[r_lo + b]
         y[b] = y_state[r_lo + b]
@@ -363,7 +366,7 @@ def _advance_group(
             for b in range(nb):
                 i = r_lo + b
                 wb = w[b]
-                if lead[i] > 0.0:
+                if switching and lead[i] > 0.0:
                     part = min(max(lead[i] * m - j, 0.0), 1.0)
                     uk[b] = (1.0 - part) * u_now[b] + part * u_before[b]
                 # The angle choosing the half-plane; at exactly 0 the side
