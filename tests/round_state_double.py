@@ -1,11 +1,17 @@
-"""Test helper: a stand-in for a diagnosis round's state
+"""Test helpers: a stand-in for a diagnosis round's state
 (`isp_twin.diagnosis.rounds._RoundState`) that records what a stage wrote
-back, for stage tests that stub the refits."""
+back, and for its candidate fits, for stage tests that stub the refits."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from typing import Any
+
+
+def fit_double(name: str, params: dict | None = None, sse: float = 0.0, bic: float = 0.0):
+    """A candidate fit as the stages read it: name, effect params, training sse and BIC."""
+    return SimpleNamespace(name=name, params={} if params is None else params, sse=sse, bic=bic)
 
 
 @dataclass

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from round_state_double import RoundStateDouble
+from round_state_double import RoundStateDouble, fit_double
 
 from isp_twin.diagnosis import rounds
 
@@ -22,21 +22,17 @@ def _data():
     return SimpleNamespace(train=SimpleNamespace(angle=angle, omega=0 * angle, mask=mask))
 
 
-def _fit(name, params, sse):
-    return SimpleNamespace(name=name, params=params, sse=sse)
-
-
 @pytest.mark.parametrize("better", [True, False])
 def test_the_offset_is_held_at_the_leaders_mean_torque_and_kept_only_if_better(monkeypatch, better):
     data = _data()
     leader = {"amplitude_rad_s2": 0.8, "phase_rad": 1.4}
-    st = RoundStateDouble({"unbalance": _fit("unbalance", leader, 1.0),
-                 "torque_offset": _fit("torque_offset", {"accel_rad_s2": 0.0}, 5.0)})  # fmt: skip
+    st = RoundStateDouble({"unbalance": fit_double("unbalance", leader, 1.0),
+                 "torque_offset": fit_double("torque_offset", {"accel_rad_s2": 0.0}, 5.0)})  # fmt: skip
     held = []
 
     def refit(data_, fit, params=None):
         held.append((fit.name, params))
-        return _fit(fit.name, params, 0.5 if better else 9.0)
+        return fit_double(fit.name, params, 0.5 if better else 9.0)
 
     monkeypatch.setattr(rounds, "_refit_globally", refit)
     out = rounds._offset_alternative(data, st, [], "unbalance")
@@ -51,17 +47,17 @@ def test_the_offset_is_held_at_the_leaders_mean_torque_and_kept_only_if_better(m
 def test_a_leader_without_a_constant_part_or_a_failed_offset_leaves_it(monkeypatch, leader):
     monkeypatch.setattr(rounds, "_refit_globally", lambda *a: pytest.fail("refitted"))
     st = RoundStateDouble(
-        {leader: _fit(leader, {}, 1.0), "torque_offset": _fit("torque_offset", {}, 5.0)}
+        {leader: fit_double(leader, {}, 1.0), "torque_offset": fit_double("torque_offset", {}, 5.0)}
     )
     assert rounds._offset_alternative(_data(), st, ["v"], leader) == ["v"]
-    st = RoundStateDouble({"unbalance": _fit("unbalance", {}, 1.0),
-                 "torque_offset": _fit("torque_offset", {}, 5.0)}, failed={"torque_offset"})  # fmt: skip
+    st = RoundStateDouble({"unbalance": fit_double("unbalance", {}, 1.0),
+                 "torque_offset": fit_double("torque_offset", {}, 5.0)}, failed={"torque_offset"})  # fmt: skip
     assert rounds._offset_alternative(_data(), st, ["v"], "unbalance") == ["v"]
 
 
 @pytest.mark.parametrize(("leader", "restarted"), [("cable_spring", ["unbalance", "torque_offset"]),
                                                    ("cogging", None)])  # fmt: skip
-def test_a_leader_with_a_constant_part_restarts_the_offset_from_its_own_fit(
+def test_a_leader_with_a_constant_part_restarts_the_offset_from_its_ownfit_double(
     monkeypatch, leader, restarted
 ):
     """`_alike_stage`: beside the alike partner, the constant torque is
@@ -74,13 +70,15 @@ def test_a_leader_with_a_constant_part_restarts_the_offset_from_its_own_fit(
     data.max_iter = 8
     spring = {"stiffness_1_s2": 0.5, "offset_rad_s2": -0.36}
     rate = np.arange(20.0)
-    fits = {n: _fit(n, {}, 5.0) for n in ("cable_spring", "unbalance", "torque_offset", "cogging")}
+    fits = {
+        n: fit_double(n, {}, 5.0) for n in ("cable_spring", "unbalance", "torque_offset", "cogging")
+    }
     fits[leader] = SimpleNamespace(name=leader, params=spring, sse=1.0, rate_vector=rate, fixed=())
     calls = []
 
     def refit(stack, x, names, fixed, starts, max_iter, rate_starts):
         calls.append((list(names), starts, rate_starts))
-        return {n: _fit(n, starts[n], 0.5) for n in names}
+        return {n: fit_double(n, starts[n], 0.5) for n in names}
 
     monkeypatch.setattr(rounds, "fit_candidates", refit)
     verdicts = [SimpleNamespace(name=leader, significant=True)]

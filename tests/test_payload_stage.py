@@ -6,26 +6,20 @@ truth's 0.21, 23 noise floors held out)."""
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 import pytest
-from round_state_double import RoundStateDouble
+from round_state_double import RoundStateDouble, fit_double
 
 from isp_twin.diagnosis import rounds
 
 MODE = {"freq_hz": 64.0, "damping_ratio": 0.04, "coupling": 0.97, "payload_fraction": 0.06}
 
 
-def _fit(name, params, sse, bic):
-    return SimpleNamespace(name=name, params=params, sse=sse, bic=bic)
-
-
 def _state(held_rms=20.0, resonance_bic=-500.0, failed=()):
-    fits = {"resonance": _fit("resonance", dict(MODE), 1.0, resonance_bic),
-            "cogging": _fit("cogging", {}, 2.0, -100.0)}  # fmt: skip
+    fits = {"resonance": fit_double("resonance", dict(MODE), 1.0, resonance_bic),
+            "cogging": fit_double("cogging", {}, 2.0, -100.0)}  # fmt: skip
     held = {n: [np.full(100, held_rms)] for n in fits}
-    return RoundStateDouble(fits, held, _fit("base", {}, 3.0, 0.0), failed=set(failed))
+    return RoundStateDouble(fits, held, fit_double("base", {}, 3.0, 0.0), failed=set(failed))
 
 
 def _refits(monkeypatch, sse_of_fraction):
@@ -34,7 +28,7 @@ def _refits(monkeypatch, sse_of_fraction):
 
     def refit(data, fit, params=None):
         held.append(params)
-        return _fit(fit.name, params, sse_of_fraction(params["payload_fraction"]), 0.0)
+        return fit_double(fit.name, params, sse_of_fraction(params["payload_fraction"]), 0.0)
 
     monkeypatch.setattr(rounds, "_refit_globally", refit)
     monkeypatch.setattr(rounds, "_global_cycles", lambda data, g: g)

@@ -11,13 +11,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from round_state_double import RoundStateDouble
+from round_state_double import RoundStateDouble, fit_double
 
 from isp_twin.diagnosis import rounds
-
-
-def _fit(name, sse, bic):
-    return SimpleNamespace(name=name, params={}, sse=sse, bic=bic)
 
 
 def _verdict(name, significant):
@@ -26,13 +22,13 @@ def _verdict(name, significant):
 
 def _state(saturation_held=12.0):
     fits = {
-        "saturation": _fit("saturation", 0.156, -133565.0),
-        "unbalance": _fit("unbalance", 0.021, -157170.0),
-        "cogging": _fit("cogging", 0.171, -132444.0),
+        "saturation": fit_double("saturation", sse=0.156, bic=-133565.0),
+        "unbalance": fit_double("unbalance", sse=0.021, bic=-157170.0),
+        "cogging": fit_double("cogging", sse=0.171, bic=-132444.0),
     }
     held = {"saturation": [np.full(50, saturation_held)], "unbalance": [np.full(50, 13.7)],
             "cogging": [np.full(50, 12.4)]}  # fmt: skip
-    st = RoundStateDouble(fits, held, _fit("base", 0.182, -131757.0))
+    st = RoundStateDouble(fits, held, fit_double("base", sse=0.182, bic=-131757.0))
     st.base_held = [np.full(50, 12.8)]
     return st
 

@@ -328,13 +328,17 @@ def _training_leader_too(data, st, verdicts, starts) -> list[Verdict]:
     globally, then not significant; the unbalance at 0.12 of the base's
     training cost, 13.7 noise floors held out, never refitted.
     """
-    at_noise = any(
-        v.significant and rms_of(st.held_of[v.name]) <= CONVERGED_RATIO * st.floor for v in verdicts
-    )
-    lead = [] if at_noise else _training_leader(data, st)
+    lead = [] if _significant_at_noise(st, verdicts) else _training_leader(data, st)
     if not lead:
         return verdicts
     return _torque_global_stage(data, st, verdicts, starts, lead[0])
+
+
+def _significant_at_noise(st, verdicts) -> bool:
+    """Whether a significant candidate is at the noise held out (`CONVERGED_RATIO`)."""
+    return any(
+        v.significant and rms_of(st.held_of[v.name]) <= CONVERGED_RATIO * st.floor for v in verdicts
+    )
 
 
 def _training_leader(data, st) -> list[str]:
@@ -472,9 +476,7 @@ def _reopen_stage(data, st, verdicts) -> list[Verdict]:
         return verdicts
     st.update(data, reopened)
     verdicts = st.judged_again(verdicts, reopened)
-    if not any(
-        v.significant and rms_of(st.held_of[v.name]) <= CONVERGED_RATIO * st.floor for v in verdicts
-    ):
+    if not _significant_at_noise(st, verdicts):
         # Still above the noise: the rate parameters of the re-opened
         # leaders identified again with `identify`'s global method and
         # their effect held (their effect is now estimated apart from

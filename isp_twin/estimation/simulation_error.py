@@ -24,6 +24,7 @@ import numpy as np
 from isp_twin.errors import DataError
 from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.model.effects import effect_class
+from isp_twin.model.effects.base import true_rates
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.parameters import EffectSpec, RateParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
@@ -198,12 +199,9 @@ def _initial_rates(stack: RunStack, effects: Sequence, p: int) -> np.ndarray:
     applied to that rate: a biased gyro's first reading is not a motion.
     """
     omega0 = np.tile(stack.omega[:, 0], p)
-    sensors = [e for e in effects if e.maps_readings]
-    if not sensors or stack.first_reading is None:
+    if not any(e.maps_readings for e in effects) or stack.first_reading is None:
         return omega0
-    rate = np.tile(stack.first_reading, p)
-    for e in reversed(sensors):
-        rate = e.true_rate(rate)
+    rate = true_rates(effects, np.tile(stack.first_reading, p))
     rate = np.broadcast_to(np.asarray(rate, float), omega0.shape).copy()
     rate[np.abs(rate) <= np.tile(stack.rest_level, p)] = 0.0
     return rate

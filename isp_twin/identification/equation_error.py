@@ -14,6 +14,7 @@ from isp_twin.identification.gyro_error import gyro_error_estimate, rate_behind_
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.side_angle import side_angle
 from isp_twin.model.effects import Effect, effect_class, make_effect
+from isp_twin.model.effects.base import true_rates
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.friction import regime_index
 from isp_twin.model.parameters import (
@@ -75,8 +76,8 @@ def equation_error_estimate(
 
 def _true_readings(data: Sequence[MeasuredData], effects: Sequence[EffectSpec]):
     """The runs with the gyro readings mapped back to the rates they mean by
-    the known sensor errors among `effects` (`Effect.true_rate`, last hook
-    first), or `data` itself when there is none.
+    the known sensor errors among `effects` (`true_rates`), or `data`
+    itself when there is none.
 
     A gyro bias read as motion makes every sample at rest a moving one (a
     bias of 0.48 deg/s against a rest level of 0.1 deg/s on benchmark
@@ -84,15 +85,13 @@ def _true_readings(data: Sequence[MeasuredData], effects: Sequence[EffectSpec]):
     friction levels: `identify` with the true bias held ended at 1.35 and
     1.52 noise floors on training, 6.4 held out.
     """
-    mapping = [e for e in effects if effect_class(e.name).maps_readings]
-    if not mapping:
+    if not any(effect_class(e.name).maps_readings for e in effects):
         return data
     out = []
     for d in data:
-        omega = np.asarray(d.omega, dtype=float)
-        for spec in reversed(mapping):
-            omega = np.asarray(make_effect(spec, d.dt).true_rate(omega), dtype=float)
-        out.append(replace(d, omega=omega))
+        built = [make_effect(e, d.dt) for e in effects]
+        omega = true_rates(built, np.asarray(d.omega, dtype=float))
+        out.append(replace(d, omega=np.asarray(omega, dtype=float)))
     return out
 
 

@@ -353,8 +353,9 @@ def _advance_group(
         for b in range(nb):
             i = r_lo + b
             uk[b] = u[i, k - 1]
-            u_now[b] = uk[b]
-            u_before[b] = u[i, k - 2] if k >= 2 else u[i, 0]
+            if switching:
+                u_now[b] = uk[b]
+                u_before[b] = u[i, k - 2] if k >= 2 else u[i, 0]
             ek[b] = extra[i, k - 1]
             acc[b] = 0.5 * (w[b] + (sfx[i, 2] + sfx[i, 15]) * ydp[b] if payload else w[b])
             idx[b] = 0

@@ -13,7 +13,7 @@ import numpy as np
 
 from isp_twin.errors import ParameterError, nearest
 
-__all__ = ["Effect", "elementwise_run"]
+__all__ = ["Effect", "elementwise_run", "true_rates"]
 
 
 class Effect:
@@ -160,3 +160,12 @@ def elementwise_run(hook, x: np.ndarray) -> np.ndarray:
     per-row parameters (P,) broadcast along the last axis, so the run is
     passed as (N, rows)."""
     return np.asarray(hook(np.asarray(x, dtype=float).T), dtype=float).T
+
+
+def true_rates(effects, reading):
+    """The rate a gyro `reading` means through the sensor errors among
+    `effects` (`Effect.true_rate` of those that `Effect.maps_readings`), the
+    last hook undone first; `reading` itself where there is none."""
+    for e in reversed([e for e in effects if e.maps_readings]):
+        reading = e.true_rate(reading)
+    return reading
