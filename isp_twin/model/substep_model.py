@@ -64,6 +64,7 @@ grouping or the threads: the numbers are the row-by-row loop's, bit for bit
 
 from __future__ import annotations
 
+import cmath
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -243,6 +244,67 @@ def _payload_clamped(coef, yp, ydp):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def _mode_over(wn, zeta, t, y, yd, a):  # pragma: no cover - compiled
+    """The mode ``y'' + 2 zeta wn y' + wn^2 y = -a`` (a held) over any span t:
+    (y, y') after it, exactly (``Phi = c0 I + c1 A`` from the two roots, as
+    `isp_twin.model.effects.resonance._discretize` over a sub-step)."""
+    if abs(zeta - 1.0) < 1e-6:  # repeated roots make the formula 0/0
+        zeta = 1.0 + 1e-6
+    root = cmath.sqrt(complex(zeta * zeta - 1.0, 0.0))
+    l1 = wn * (-zeta + root)
+    l2 = wn * (-zeta - root)
+    e1 = cmath.exp(l1 * t)
+    e2 = cmath.exp(l2 * t)
+    c0 = ((l1 * e2 - l2 * e1) / (l1 - l2)).real
+    c1 = ((e1 - e2) / (l1 - l2)).real
+    y_ss = -a / (wn * wn)  # the deflection the held acceleration settles at
+    e = y - y_ss
+    return y_ss + c0 * e + c1 * yd, c0 * yd - c1 * (wn * wn * e + 2.0 * zeta * wn * yd)
+
+
+@njit(cache=True, nogil=True)
+def _payload_stop(
+    table, i, a, uk, ek, fixed_side, by_drive, coef, wb, w_new, ydp, ydn, yp, h, dt
+):  # pragma: no cover - compiled
+    """The motor side of a two-mass axis (r > 0) stops inside a sub-step.
+
+    ``w_new`` and ``ydn`` are the sub-step taken whole from the rate ``wb``
+    (`_payload_motion`). The stop falls at the part ``wb / (wb - w_new)`` of
+    it (the rate linear in time, as a rigid axis's split); the payload moves
+    free up to it under the centre-of-mass acceleration, and the rest of the
+    sub-step starts at rest: a breakaway where the drive with the spring's
+    pull passes the static level (the payload driven again), else the
+    payload rings with the motor side clamped. As the reference integrates
+    its payload between events (`isp_twin.reference.axis`). Returns the
+    motor rate and the payload's (y, y') at the sub-step's end.
+    """
+    r = coef[2]
+    wn = np.sqrt(coef[3] * (1.0 + r) / r)  # spring_y = r/(1+r) wn^2
+    zeta = coef[4] * (1.0 + r) / (2.0 * r * wn)  # spring_yd = r/(1+r) 2 zeta wn
+    part = wb / (wb - w_new)
+    accel = (w_new + r * (ydn - ydp) - wb) / h  # the centre of mass's, while moving
+    y1, yd1 = _mode_over(wn, zeta, part * h, yp, ydp, accel)
+    left = (1.0 - part) * h
+    spring = coef[3] * y1 + coef[4] * yd1
+    r0 = _rest_regime(table, i, a, uk, ek + dt * spring, fixed_side, by_drive)
+    free = r0 >= 0
+    if not free:
+        r0 = _regime_at(a, uk, fixed_side)
+    d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
+    dd = d + table[i, r0, 5] * dt * spring
+    ix = _regime_at(a, dd, fixed_side)
+    if free and abs(dd) > table[i, ix, 2] and left > 0.0:
+        wc = (1.0 - part) * (d - law.stiction(dd, table[i, ix, 2]))
+        y2, yd2 = _mode_over(wn, zeta, left, y1, yd1, wc / left)
+        w1 = wc - r * (yd2 - yd1)
+        if w1 * dd > 0.0:
+            return w1, y2, yd2
+    stretch = np.sqrt(1.0 + r)
+    y2, yd2 = _mode_over(wn / stretch, zeta / stretch, left, y1, yd1, 0.0)
+    return 0.0, y2, yd2
+
+
+@njit(cache=True, nogil=True)
 def _bristles(z, direction, travel, zmax):  # pragma: no cover - compiled
     """LuGre's bristle deflection after ``travel`` [rad] in ``direction``:
     ``dz/dtheta = 1 - sgn(w) z / z_max`` solved exactly (the reference's form)."""
@@ -404,19 +466,31 @@ def _advance_group(
                             slide += unit * _bristles(z[b], wb, 0.25 * h * (wb + w_new), sfx[i, 1])
                         w_new = p * wb + drive - slide
                         if payload:
+                            # The viscous torque acts on the motor side's rate,
+                            # which the mode moves by -r dy' over the sub-step:
+                            # at its mean, -r dy'/2 (first pass's dy'), not at
+                            # its start (a first-order error in the mode's
+                            # damping, `tests/test_two_mass_payload.py`).
+                            w_new += (1.0 - p) * 0.5 * sfx[i, 2] * (ydn - ydp[b])
                             w_new, yn, ydn = _payload_motion(sfx[i], yp[b], ydp[b], wb, w_new, h)
                     if w_new * wb <= 0.0:
                         rest_part = 0.0
-                        # A payload on the motor side (r > 0) ends the
-                        # sub-step at the stop; without one (r = 0: a gyro-only
-                        # mode, or the null rows of other candidates in one
-                        # batch) the stop is split as on a rigid axis.
-                        if split and w_new != 0.0 and not (payload and sfx[i, 2] != 0.0):
+                        # A payload on the motor side (r > 0) is split at the
+                        # stop with the mode (`_payload_stop`; with LuGre's
+                        # bristles on the same row the stop ends the sub-step);
+                        # without one (r = 0: a gyro-only mode, or the null
+                        # rows of other candidates in one batch) as on a rigid axis.
+                        two_mass = payload and sfx[i, 2] != 0.0
+                        if split and w_new != 0.0 and not two_mass:
                             rest_part = 1.0 - wb / (wb - w_new)
                         if bristles:  # travel to the stop: the rate falls linearly
                             part = wb / (wb - w_new) if w_new != 0.0 else 1.0
                             z[b] = _bristles(z[b], wb, 0.5 * h * part * wb, sfx[i, 1])
-                        w_new = 0.0
+                        if split and w_new != 0.0 and two_mass and sfx[i, 0] == 0.0:
+                            w_new, yn, ydn = _payload_stop(table, i, a, uk[b], ek[b], fixed_side,
+                                by_drive, sfx[i], wb, w_new, ydp[b], ydn, yp[b], h, dt)  # fmt: skip
+                        else:
+                            w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
                             r0 = _rest_regime(table, i, a, uk[b], ek[b], fixed_side, by_drive)
