@@ -530,7 +530,10 @@ def _advance_group(
                     ts = table[i, ix, 2]
                     if free and abs(dd) > ts:
                         wb = d - law.stiction(dd, ts)
-                        if bristles:
+                        # Only a bristle force can hold the axis here: a
+                        # two-mass axis's centre of mass may move against
+                        # the motor side's breakaway (the spring's pull).
+                        if bristles and sfx[i, 0] != 0.0:
                             wb = _break_through_bristles(
                                 wb, dd, 1.0, table[i, ix, 5], sfx[i], z, b, h
                             )
