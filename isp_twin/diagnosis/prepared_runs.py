@@ -6,7 +6,7 @@ simulation error (`stacked`, `Data`)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from isp_twin.identification.fit import IdentificationResult, identify
 from isp_twin.identification.fit import Settings as IdSettings
 from isp_twin.identification.measured import SAMPLE_PERIOD_TOLERANCE, MeasuredData
 from isp_twin.identification.read_out import TIMINGS, Timing
-from isp_twin.identification.side_angle import side_angle
+from isp_twin.identification.side_angle import with_side_angle
 from isp_twin.model.effects import EFFECTS, effect_class
 from isp_twin.model.parameters import (
     RATE_LAYOUT,
@@ -265,7 +265,7 @@ def side_choice(runs, holdout, ax, timing, integration, x_start) -> tuple[list, 
     # sensor_bias effect) enters the integrated rate the fusion trusts
     # at short times and moves its zero crossings.
     m = integration.substeps
-    fused = [replace(r, angle=side_angle(r, "measured", timing.side_shift / m)) for r in runs]
+    fused = [with_side_angle(r, "measured", timing.side_shift / m) for r in runs]
     costs = [
         float(
             np.sum(
@@ -285,7 +285,7 @@ def side_choice(runs, holdout, ax, timing, integration, x_start) -> tuple[list, 
         for rs in (fused, runs)
     ]
     if costs[0] <= costs[1]:
-        held = [replace(r, angle=side_angle(r, "measured", timing.side_shift / m)) for r in holdout]
+        held = [with_side_angle(r, "measured", timing.side_shift / m) for r in holdout]
         return fused, held
     return runs, holdout
 

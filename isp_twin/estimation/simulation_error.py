@@ -78,6 +78,11 @@ class RunStack:
             payload's angle, whose deflection the sub-stepped model takes
             off for the motor side's (`simulate_substeps`); False: a
             motor-side angle (the raw resolver).
+        resolver_side: per step, the half-plane the measured (resolver)
+            angle settles where ``angle`` is the fused one, int8 (R, N)
+            (`resolver_sides`); None: none.
+        fusion_accel: there, the fusion window's mean acceleration (R, N)
+            [rad/s^2] (`isp_twin.model.effects.base.Effect.fusion_deflection`).
     """
 
     names: tuple[str, ...]
@@ -92,6 +97,8 @@ class RunStack:
     first_reading: np.ndarray | None = None
     rest_level: np.ndarray | None = None
     side_follows_gyro: bool = True
+    resolver_side: np.ndarray | None = None
+    fusion_accel: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
@@ -150,6 +157,8 @@ def stack_runs(
     shape = (len(runs), n)
     u, omega, angle = np.zeros(shape), np.zeros(shape), np.zeros(shape)
     mask = np.zeros(shape, dtype=bool)
+    known, accel = np.zeros(shape, dtype=np.int8), np.zeros(shape)
+    fused = False  # a run with the fused angle (`resolver_sides`)
     first, levels = np.zeros(len(runs)), np.zeros(len(runs))
     for i, r in enumerate(runs):
         m = len(r.u)
@@ -157,6 +166,10 @@ def stack_runs(
         omega[i, :m] = r.omega
         angle[i, :m] = r.angle
         angle[i, m:] = r.angle[-1]
+        if getattr(r, "resolver", None) is not None:
+            fused = True
+            known[i, :m] = resolver_sides(r.resolver)
+            accel[i, :m] = r.fusion_accel
         mask[i, min(max(warmup, 1), m - 1) : m] = True
         # The first measured rate is the initial state; a reading within the
         # rest level is rest (the stiction branch of Eq. 5), not a slow
@@ -169,7 +182,23 @@ def stack_runs(
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
     stacked = (names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels)
-    return RunStack(*stacked, side_follows_gyro)
+    return RunStack(*stacked, side_follows_gyro, known if fused else None, accel if fused else None)
+
+
+def resolver_sides(angle: np.ndarray) -> np.ndarray:
+    """Per step k -> k+1, the half-plane the resolver's reading settles, int8 (N,):
+    +1 (R) or -1 (L) where it reads a non-zero angle of one sign at both ends,
+    else 0 (a reading of 0 holds angles of either sign within its quantum).
+
+    The fused angle follows the gyro, and a gyro on a flexible payload reads
+    the payload's ringing: the sub-stepped model takes its own deflection
+    off (`isp_twin.model.substep_model`), and where that leaves the side
+    the resolver contradicts, the resolver's side holds.
+    """
+    a = np.sign(np.asarray(angle, dtype=float)).astype(np.int8)
+    out = np.zeros_like(a)
+    out[:-1] = np.where(a[:-1] == a[1:], a[:-1], 0)
+    return out
 
 
 def _common_period(runs: Sequence) -> float:
@@ -246,14 +275,28 @@ def predict(
         stack.dt,
         omega0=_initial_rates(stack, batch, p),
         angle0=np.tile(stack.angle[:, 0], p),
-        angle_measured=np.tile(stack.angle, (p, 1)),
+        angle_measured=_side_angles(stack, batch, p),
         effects=batch,
         side=stack.side,
         integration=stack.integration,
         gyro_average=stack.gyro_average,
         side_follows_gyro=stack.side_follows_gyro,
+        resolver_side=None if stack.resolver_side is None else np.tile(stack.resolver_side, (p, 1)),
     )
     return _diverged_held(resp).mapped(lambda a: a.reshape(p, r, n))
+
+
+def _side_angles(stack: RunStack, effects: Sequence, p: int) -> np.ndarray:
+    """The angle choosing the half-plane per row (P*R, N): the stack's, and
+    where it is the fused one what its smoothing took off a deflection the
+    model takes off itself (`Effect.fusion_deflection`)."""
+    angle = np.tile(stack.angle, (p, 1))
+    if stack.fusion_accel is None or not stack.side_follows_gyro:
+        return angle
+    accel = np.tile(stack.fusion_accel, (p, 1))
+    for e in effects:
+        angle = angle + e.fusion_deflection(accel)
+    return angle
 
 
 def _diverged_held(resp):

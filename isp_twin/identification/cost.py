@@ -6,7 +6,6 @@ data's rate noise."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
@@ -15,7 +14,7 @@ from isp_twin.estimation.simulation_error import residuals as simulation_residua
 from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
-from isp_twin.identification.side_angle import side_angle
+from isp_twin.identification.side_angle import with_side_angle
 from isp_twin.model.parameters import EffectSpec, RateParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.units import DEG
@@ -41,7 +40,7 @@ def run_stack(
     `side_source` angle read at `timing`, every sample after the first
     counted, a first rate within `rest_rate_deg_s` [deg/s] taken as rest."""
     shift = timing.side_shift / integration.substeps
-    runs = [replace(d, angle=side_angle(d, side_source, shift)) for d in data]
+    runs = [with_side_angle(d, side_source, shift) for d in data]
     return stack_runs(
         runs,
         warmup=1,

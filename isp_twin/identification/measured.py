@@ -149,6 +149,10 @@ class MeasuredData:
         angle: angle [rad].
         source: the file it came from (None when made in code).
         dt: sample period [s].
+        resolver: the angle as measured [rad] where `angle` is the fused
+            one (`isp_twin.identification.side_angle.with_side_angle`), else None.
+        fusion_accel: there, the fusion window's mean of the rate's
+            derivative [rad/s^2] (`Effect.fusion_deflection`), else None.
     """
 
     name: str
@@ -158,6 +162,8 @@ class MeasuredData:
     angle: np.ndarray
     source: Path | None
     dt: float
+    resolver: np.ndarray | None = None
+    fusion_accel: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])

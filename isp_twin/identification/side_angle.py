@@ -5,6 +5,7 @@ wrapped, or a fixed side (`SIDE_SOURCES`); why: `isp_twin.identification.fit`.""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -22,6 +23,8 @@ __all__ = [
     "fused_angle",
     "fusion_noise",
     "side_angle",
+    "with_side_angle",
+    "window_accel",
     "at_boundary",
     "regime_visits",
 ]
@@ -141,6 +144,37 @@ def side_angle(data: MeasuredData, side_source: str = "measured", shift: float =
     if side_source == "left":
         return -np.ones_like(data.angle)
     raise ParameterError(f"side source '{side_source}' unknown; allowed: {', '.join(SIDE_SOURCES)}")
+
+
+def with_side_angle(data: MeasuredData, side_source: str, shift: float = 0.0) -> MeasuredData:
+    """The run with `side_angle` as its angle; with the fused angle
+    (``measured``) the measured one is kept as ``resolver``, whose sign the
+    model's side keeps on a two-mass axis
+    (`isp_twin.estimation.simulation_error.resolver_sides`), with the
+    fusion window's mean acceleration (`window_accel`,
+    `isp_twin.model.effects.base.Effect.fusion_deflection`)."""
+    angle = side_angle(data, side_source, shift)
+    if side_source != "measured":
+        return replace(data, angle=angle, resolver=None, fusion_accel=None)
+    # At rest on the boundary (`at_boundary`) the side angle is 0, not fused.
+    accel = np.where(angle == 0.0, 0.0, window_accel(data))
+    return replace(data, angle=angle, resolver=data.angle, fusion_accel=accel)
+
+
+def window_accel(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
+    """The mean of the rate's derivative over `fused_angle`'s centred window
+    [rad/s^2], shape (N,): the rate's change across the window over its span.
+    0 within half a window of the run's ends, where the fusion's window is
+    padded: an axis starting from rest has not the quasi-static deflection
+    `Effect.fusion_deflection` assumes (dev resonance seed 1005, a start
+    at 0.01 deg under a full step: train2 1.01 -> 1.21 noise floors with it)."""
+    n = data.omega.shape[0]
+    half = max(1, min(window, n if n % 2 else n - 1)) // 2
+    padded = np.pad(np.asarray(data.omega, dtype=float), half, mode="edge")
+    accel = (padded[2 * half :] - padded[:n]) / (2 * half * data.dt)
+    accel[:half] = 0.0
+    accel[n - half :] = 0.0
+    return accel
 
 
 def regime_visits(

@@ -355,6 +355,7 @@ def _advance_group(
     sfx,
     kstate,
     lead,
+    known,
 ):  # pragma: no cover - compiled
     """Advance rows r_lo..r_hi-1 from sample k_lo-1 to k_hi-1 (writes columns k_lo..k_hi-1).
 
@@ -376,7 +377,8 @@ def _advance_group(
     sub-step the switch falls in gets the two commands' time-weighted
     mean). With a payload w is the motor side's rate (friction, stick,
     resolver) and the gyro reads the payload's ``w + (r + c) y'`` (c = 1: a
-    gyro on the payload).
+    gyro on the payload); known: (S, N) int8, per step the side the
+    resolver settles (`simulate_substeps`'s resolver_side), or (1, 1): none.
 
     The rows are the innermost loop: one sub-step of a row is a chain of
     dependent operations (two exp of the Stribeck curve), so the processor
@@ -400,6 +402,7 @@ def _advance_group(
     u_before = scratch[11]
     bristles = sfx.shape[1] >= 2
     payload = sfx.shape[1] >= 16
+    resolver = known.shape[1] > 1
     switching = False  # a command switch inside the sample in any row
     for b in range(nb):
         switching = switching or lead[r_lo + b] > 0.0
@@ -440,8 +443,14 @@ def _advance_group(
                         # The fused angle follows the gyro's integral, the
                         # payload's angle, within the fusion's window; the
                         # side is the motor side's: less the payload's
-                        # deflection (r + c) y.
-                        a -= (sfx[i, 2] + sfx[i, 15]) * yp[b]
+                        # deflection (r + c) y. Where the resolver settles
+                        # the side (`known`), its side holds: the model's
+                        # ringing is not the payload's to a fraction of it.
+                        deflection = (sfx[i, 2] + sfx[i, 15]) * yp[b]
+                        a -= deflection
+                        kn = known[i, k - 1] if resolver else 0
+                        if kn != 0 and kn * a <= 0.0 and deflection != 0.0:
+                            a = kn * max(abs(a), 1e-12)
                 else:
                     a = y[b]
                 if wb != 0.0:
@@ -603,10 +612,11 @@ def _advance_rows(
     sfx=None,
     kstate=None,
     lead=None,
+    known=None,
 ):  # pragma: no cover - compiled
     """`_advance_group` on rows r_lo..r_hi-1, `GROUP_ROWS` at a time (no
     effect in the sub-steps when sfx, kstate are omitted, the command held
-    over the whole sample when lead is)."""
+    over the whole sample when lead is, no resolver side when known is)."""
     if sfx is None:
         sfx_, kstate_ = np.zeros((1, 0)), np.zeros((1, 0))
     else:
@@ -615,6 +625,10 @@ def _advance_rows(
         lead_ = np.zeros(u.shape[0])
     else:
         lead_ = lead
+    if known is None:
+        known_ = np.zeros((1, 1), dtype=np.int8)
+    else:
+        known_ = known
     frac = np.empty(m)
     for j in range(m):
         frac[j] = j / m
@@ -624,7 +638,7 @@ def _advance_rows(
         g_hi = min(g + GROUP_ROWS, r_hi)
         _advance_group(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid,
                        split, by_drive, w_state, y_state, point, reading, angle, regime, g, g_hi, frac,
-                       scratch, idx, sfx_, kstate_, lead_)  # fmt: skip
+                       scratch, idx, sfx_, kstate_, lead_, known_)  # fmt: skip
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -652,6 +666,7 @@ def _advance_blocks(
     sfx=None,
     kstate=None,
     lead=None,
+    known=None,
 ):  # pragma: no cover - compiled
     """`_advance_rows` on `n_blocks` blocks of rows in parallel (rows are independent)."""
     n_rows = u.shape[0]
@@ -659,7 +674,7 @@ def _advance_blocks(
         r_lo, r_hi = c * n_rows // n_blocks, (c + 1) * n_rows // n_blocks
         _advance_rows(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
                       by_drive, w_state, y_state, point, reading, angle, regime, r_lo, r_hi, sfx,
-                      kstate, lead)  # fmt: skip
+                      kstate, lead, known)  # fmt: skip
 
 
 #: Sub-steps (rows x samples x m) below which a call stays on one thread:
@@ -669,7 +684,8 @@ PARALLEL_MIN_SUBSTEPS = 200_000
 
 
 def _advance(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
-             by_drive, w_state, y_state, point, reading, angle, regime, sfx, kstate, lead):  # fmt: skip
+             by_drive, w_state, y_state, point, reading, angle, regime, sfx, kstate, lead,
+             known):  # fmt: skip
     """Advance every row from sample k_lo-1 to k_hi-1 (`_advance_rows`), on all
     of numba's threads when the call is large enough; the same numbers either way."""
     n_rows = u.shape[0]
@@ -677,9 +693,9 @@ def _advance(table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, m
     args = (table, u, extra, side_y, use_side, fixed_side, k_lo, k_hi, m, dt, mid, split,
             by_drive, w_state, y_state, point, reading, angle, regime)  # fmt: skip
     if blocks > 1 and n_rows * (k_hi - k_lo) * m >= PARALLEL_MIN_SUBSTEPS:
-        _advance_blocks(*args, blocks, sfx, kstate, lead)
+        _advance_blocks(*args, blocks, sfx, kstate, lead, known)
     else:
-        _advance_rows(*args, 0, n_rows, sfx, kstate, lead)
+        _advance_rows(*args, 0, n_rows, sfx, kstate, lead, known)
 
 
 @njit(cache=True)
@@ -769,6 +785,7 @@ def simulate_substeps(
     integration: Integration = DEFAULT_INTEGRATION,
     gyro_average: bool = False,
     side_follows_gyro: bool = False,
+    resolver_side: np.ndarray | None = None,
 ) -> AxisResponse:
     """Simulate the sub-stepped Eq. 6 for a batch of parameter sets.
 
@@ -780,18 +797,18 @@ def simulate_substeps(
         angle0: angle at sample 0 [rad], float or (P,).
         angle_measured: (N,) or (P, N) angle [rad] choosing the half-plane
             (teacher forcing); None: the model's own angle.
-        effects: extra effects (reset here, evaluated per sample), parameters
-            floats or arrays (P,).
+        effects: extra effects (reset here), parameters floats or arrays (P,).
         side: fix the half-plane (`SIDE_R` or `SIDE_L`) whatever the angle.
         integration: sub-steps and options (`Integration`).
         gyro_average: the reading is the rate averaged over the sample.
         side_follows_gyro: `angle_measured` follows the gyro (`RunStack`).
+        resolver_side: (P, N) int8, per step the side the resolver settles
+            (+1 R, -1 L, 0 open; `RunStack.resolver_side`), or None.
 
     Returns:
-        `AxisResponse` (shapes (N,) for unbatched params, else (P, N)):
-        ``omega`` is the gyro reading (averaged when asked, measurement
-        effects applied), ``omega_true`` the rate at the sample instants
-        when the two differ.
+        `AxisResponse` (shapes (N,) for unbatched params, else (P, N)): ``omega``
+        the gyro reading (averaged when asked, measurement effects applied),
+        ``omega_true`` the rate at the sample instants where the two differ.
     """
     _ensure_current_law()
     u = np.asarray(u, dtype=float)
@@ -800,23 +817,22 @@ def simulate_substeps(
     n_rows = _batch_rows(params, u, omega0, angle0, angle_measured)
     m = int(integration.substeps)
     table = _substep_table(params, n_rows, m, integration.exact_effect_hold)
-    u_rows, side_y = _input_rows(u, angle_measured, n_rows, n)
+    u_rows, side_y, known = _input_rows(u, angle_measured, resolver_side, n_rows, n)
     fixed = -1 if check_side(side) is None else side
     outputs = _state_and_outputs(n_rows, n, omega0, angle0)
-    _, _, point, reading, _, _ = outputs
     sfx, kstate, effects = _substep_effects(effects, n_rows, dt, m)
     args = (m, float(dt), *integration.kernel_flags())
     use_side = 0 if angle_measured is None else SIDE_FOLLOWS_GYRO if side_follows_gyro else 1
     at_y = _torque_angle(side_y, integration.midstep_angle and use_side, effects)
-    before_run = _effects_before_the_run(effects, u_rows, at_y, use_side, dt, m)
-    commands, torques, u_eff, extra, lead = before_run
+    before = _effects_before_the_run(effects, u_rows, at_y, use_side, dt, m)
+    commands, torques, u_eff, extra, lead = before
     if not (commands or torques):
         _advance(table, u_eff, extra, side_y, use_side, fixed, 1, n, *args, *outputs, sfx, kstate,
-                 lead)  # fmt: skip
+                 lead, known)  # fmt: skip
     else:
-        kernel_args = (table, side_y, use_side, fixed, args, outputs, sfx, kstate, lead)
+        kernel_args = (table, side_y, use_side, fixed, args, outputs, sfx, kstate, lead, known)
         _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at_y)
-    return _response(_measured(reading if gyro_average else point, effects), outputs, single)
+    return _response(_measured(outputs[3 if gyro_average else 2], effects), outputs, single)
 
 
 def _response(out, outputs, single: bool) -> AxisResponse:
@@ -864,7 +880,7 @@ def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at
     """Effects that need the model's own state: evaluated per sample, their
     command and acceleration held over the sub-steps of one kernel call each
     (a torque of the measured angle at `at_y`)."""
-    table, side_y, use_side, fixed, args, outputs, sfx, kstate, lead = kernel_args
+    table, side_y, use_side, fixed, args, outputs, sfx, kstate, lead, known = kernel_args
     w, y = outputs[0], outputs[1]
     n_rows, n = u_rows.shape
     if commands:
@@ -879,7 +895,7 @@ def _run_per_sample(kernel_args, commands, torques, u_rows, u_eff, extra, dt, at
             at = at_y[:, k - 1] if use_side else y
             extra[:, k - 1] = sum(e.acceleration(at, w) for e in torques) * dt
         _advance_rows(table, u_eff, extra, side_y, use_side, fixed, k, k + 1, *args,
-                      *outputs, 0, n_rows, sfx, kstate, lead)  # fmt: skip
+                      *outputs, 0, n_rows, sfx, kstate, lead, known)  # fmt: skip
 
 
 def _substep_effects(effects, n_rows: int, dt: float, m: int):
@@ -913,14 +929,24 @@ def _substep_effects(effects, n_rows: int, dt: float, m: int):
     return sfx, np.zeros((n_rows, 3)), [e for e in effects if not e.in_substeps]
 
 
-def _input_rows(u, angle_measured, n_rows: int, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The command and the half-plane angle, (rows, N) each, contiguous (a
-    (1, 1) placeholder angle when the model's own angle chooses)."""
+def _input_rows(u, angle_measured, resolver_side, n_rows: int, n: int) -> tuple[np.ndarray, ...]:
+    """The command, the half-plane angle and the resolver's sides, (rows, N)
+    each, contiguous ((1, 1) placeholders for an angle when the model's own
+    angle chooses, and for sides when none are given)."""
     u_rows = np.ascontiguousarray(np.broadcast_to(u, (n_rows, n)), dtype=float)
+    known = _resolver_rows(resolver_side, n_rows, n)
     if angle_measured is None:
-        return u_rows, np.zeros((1, 1))
+        return u_rows, np.zeros((1, 1)), known
     side_y = np.broadcast_to(np.asarray(angle_measured, dtype=float), (n_rows, n))
-    return u_rows, np.ascontiguousarray(side_y)
+    return u_rows, np.ascontiguousarray(side_y), known
+
+
+def _resolver_rows(resolver_side, n_rows: int, n: int) -> np.ndarray:
+    """`simulate_substeps`'s resolver sides, (rows, N) int8, or a (1, 1) placeholder."""
+    if resolver_side is None:
+        return np.zeros((1, 1), dtype=np.int8)
+    known = np.broadcast_to(np.asarray(resolver_side, dtype=np.int8), (n_rows, n))
+    return np.ascontiguousarray(known)
 
 
 def _batch_rows(params: RateParams, u, omega0, angle0, angle_measured) -> int:

@@ -109,6 +109,22 @@ class Resonance(Effect):
                     f"effect 'resonance': payload_fraction must be in [0, 1) (J2/J), got {bad:g}"
                 )
 
+    def fusion_deflection(self, accel: np.ndarray) -> np.ndarray:
+        """`Effect.fusion_deflection`: the gyro reads ``w1 + (r + c) y'``,
+        so its integral, which the fused angle follows, is the motor side's
+        angle plus (r + c) y; the fusion's moving average keeps only the
+        resolver's part of the slow deflection, the mode's quasi-static
+        ``y = -w'/wn^2`` under the window's mean acceleration (the ringing
+        averages out). The model takes (r + c) y off the fused angle
+        (`isp_twin.model.substep_model`), so this is added back: without it
+        a two-mass axis accelerating through 0 changed sides early by
+        ``(r + c) w'/wn^2`` (0.01 deg at 17 Hz, docs/diagnosis.md "Stop 30")."""
+        f = np.asarray(self.params["payload_fraction"], dtype=float)
+        k = f / (1.0 - f) + np.asarray(self.params["coupling"], dtype=float)
+        wn = 2.0 * np.pi * np.asarray(self.params["freq_hz"], dtype=float)
+        gain = -k / (wn * wn)
+        return (gain[..., None] if np.ndim(gain) else gain) * accel
+
     def reset(self) -> None:
         self._phi, self._gamma = _discretize(
             self.params["freq_hz"], self.params["damping_ratio"], self.params["coupling"], self.dt
