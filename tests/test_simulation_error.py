@@ -14,6 +14,7 @@ from isp_twin.estimation.simulation_error import residuals, residuals_many, stac
 from isp_twin.identification.cost import residuals as eq9_residuals
 from isp_twin.identification.cost import rmse, run_stack
 from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.side_angle import with_side_angle
 from isp_twin.model.effects import EFFECTS
 from isp_twin.model.parameters import RateParams
 from isp_twin.units import DEG
@@ -157,3 +158,17 @@ def test_trust_region_recovers_an_exponential_and_reports_a_spent_budget():
     assert fit.sse == pytest.approx(float(resid(fit.x) @ resid(fit.x)))
     short = trust_region(resid, jac, np.array([1.0, 1.0]), lo, hi, 2, 1e-10)
     assert short.status is FitStatus.MAX_ITERATIONS
+
+
+def test_a_stack_follows_the_gyro_only_with_the_fused_angle(runs_and_rate):
+    # The sub-stepped model takes a payload's deflection off a side angle
+    # that follows the gyro (the fused one), not off the raw resolver's
+    # motor-side angle, which diagnose keeps where it fits the start better.
+    raw, _ = runs_and_rate
+    fused = [with_side_angle(r, "measured") for r in raw]
+    assert not stack_runs(raw).side_follows_gyro
+    assert stack_runs(raw).resolver_side is None
+    stack = stack_runs(fused)
+    assert stack.side_follows_gyro
+    assert stack.resolver_side.shape == stack.u.shape
+    assert stack_runs(raw, side_follows_gyro=True).side_follows_gyro

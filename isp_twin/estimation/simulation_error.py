@@ -134,7 +134,7 @@ def stack_runs(
     gyro_average: bool = False,
     integration: Integration = DEFAULT_INTEGRATION,
     rest: float | None = None,
-    side_follows_gyro: bool = True,
+    side_follows_gyro: bool | None = None,
 ) -> RunStack:
     """Stack runs (`isp_twin.identification.measured.MeasuredData` or anything with
     ``name, u, omega, angle, dt``).
@@ -144,7 +144,10 @@ def stack_runs(
             and that angle-dependent effects see.
         warmup: samples at each run's start that do not count (at least 1:
             sample 0 is the initial state).
-        side, gyro_average, integration, side_follows_gyro: as `RunStack`'s.
+        side, gyro_average, integration, side_follows_gyro: as `RunStack`'s;
+            side_follows_gyro None: whether the runs carry the fused angle
+            (a ``resolver`` kept beside it, `side_angle.with_side_angle`):
+            a raw resolver's angle is the motor side's already.
         rest: a first measured rate at most this large [rad/s] starts the
             model at rest; None: at most three noise standard deviations
             (the noise from the run's first 2000 samples).
@@ -182,7 +185,8 @@ def stack_runs(
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
     stacked = (names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels)
-    return RunStack(*stacked, side_follows_gyro, known if fused else None, accel if fused else None)
+    follows = fused if side_follows_gyro is None else side_follows_gyro
+    return RunStack(*stacked, follows, known if fused else None, accel if fused else None)
 
 
 def resolver_sides(angle: np.ndarray) -> np.ndarray:
