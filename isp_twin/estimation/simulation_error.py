@@ -299,7 +299,9 @@ def _side_angles(stack: RunStack, effects: Sequence, p: int) -> np.ndarray:
         return angle
     accel = np.tile(stack.fusion_accel, (p, 1))
     for e in effects:
-        angle = angle + e.fusion_deflection(accel)
+        deflection = e.fusion_deflection(accel)
+        if np.ndim(deflection):
+            angle += deflection
     return angle
 
 
