@@ -237,6 +237,23 @@ def _rest_regime(table, i, a, uk, ek, fixed_side, by_drive):  # pragma: no cover
 
 
 @njit(cache=True, nogil=True)
+def _rest_drive(
+    table, i, a, uk, ek, dt, spring, fixed_side, by_drive
+):  # pragma: no cover - compiled
+    """At rest: whether the axis may break away (`_rest_regime`), the drive
+    ``d`` of the regime whose gain acts [rate per sub-step], the motor side's
+    drive ``dd`` with a payload spring's pull ``spring`` [rad/s^2] (0 on a
+    rigid axis) and the regime it breaks towards."""
+    r0 = _rest_regime(table, i, a, uk, ek + dt * spring, fixed_side, by_drive)
+    free = r0 >= 0
+    if not free:
+        r0 = _regime_at(a, uk, fixed_side)
+    d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
+    dd = d + table[i, r0, 5] * dt * spring
+    return free, d, dd, _regime_at(a, dd, fixed_side)
+
+
+@njit(cache=True, nogil=True)
 def _payload_clamped(coef, yp, ydp):  # pragma: no cover - compiled
     """The payload ringing over a sub-step with the motor side stuck:
     ``(1 + r) y'' + 2 zeta wn y' + wn^2 y = 0`` (the clamped frequency)."""
@@ -285,14 +302,8 @@ def _payload_stop(
     accel = (w_new + r * (ydn - ydp) - wb) / h  # the centre of mass's, while moving
     y1, yd1 = _mode_over(wn, zeta, part * h, yp, ydp, accel)
     left = (1.0 - part) * h
-    spring = coef[3] * y1 + coef[4] * yd1
-    r0 = _rest_regime(table, i, a, uk, ek + dt * spring, fixed_side, by_drive)
-    free = r0 >= 0
-    if not free:
-        r0 = _regime_at(a, uk, fixed_side)
-    d = table[i, r0, 1] * uk + table[i, r0, 5] * ek
-    dd = d + table[i, r0, 5] * dt * spring
-    ix = _regime_at(a, dd, fixed_side)
+    spring = coef[3] * y1 + coef[4] * yd1  # its pull on the motor side
+    free, d, dd, ix = _rest_drive(table, i, a, uk, ek, dt, spring, fixed_side, by_drive)
     if free and abs(dd) > table[i, ix, 2] and left > 0.0:
         wc = (1.0 - part) * (d - law.stiction(dd, table[i, ix, 2]))
         y2, yd2 = _mode_over(wn, zeta, left, y1, yd1, wc / left)
@@ -502,12 +513,8 @@ def _advance_group(
                             w_new = 0.0
                         if rest_part > 0.0:
                             # The rest of the sub-step starts at rest.
-                            r0 = _rest_regime(table, i, a, uk[b], ek[b], fixed_side, by_drive)
-                            free = r0 >= 0
-                            if not free:
-                                r0 = _regime_at(a, uk[b], fixed_side)
-                            d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
-                            ix = _regime_at(a, d, fixed_side)
+                            free, _, d, ix = _rest_drive(table, i, a, uk[b], ek[b], dt, 0.0,
+                                                         fixed_side, by_drive)  # fmt: skip
                             ts2 = table[i, ix, 2]
                             if free and abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
@@ -527,15 +534,8 @@ def _advance_group(
                     spring = 0.0  # the payload's spring pulls on the motor side
                     if payload:
                         spring = sfx[i, 3] * yp[b] + sfx[i, 4] * ydp[b]
-                    r0 = _rest_regime(table, i, a, uk[b], ek[b] + dt * spring, fixed_side, by_drive)
-                    free = r0 >= 0
-                    if not free:
-                        r0 = _regime_at(a, uk[b], fixed_side)
-                    d = table[i, r0, 1] * uk[b] + table[i, r0, 5] * ek[b]
-                    dd = d  # the motor side's drive
-                    if payload:
-                        dd = d + table[i, r0, 5] * dt * spring
-                    ix = _regime_at(a, dd, fixed_side)
+                    free, d, dd, ix = _rest_drive(table, i, a, uk[b], ek[b], dt, spring,
+                                                  fixed_side, by_drive)  # fmt: skip
                     ts = table[i, ix, 2]
                     if free and abs(dd) > ts:
                         wb = d - law.stiction(dd, ts)
