@@ -176,7 +176,7 @@ def test_the_true_two_mass_payload_of_reference_axes_is_within_the_issues_bound(
     # two-mass motor side was split and its viscous torque taken at the
     # sub-step's mean rate (docs/diagnosis.md "Stop 30"). 1009 (17 Hz): 16.1
     # on train1 before the fused angle got back the payload's quasi-static
-    # deflection its smoothing takes off (`Effect.fusion_deflection`); 1014:
+    # deflection its smoothing takes off (`Effect.fusion_gain`); 1014:
     # 6.98 on train1 before a breakaway pulled by the spring was let go.
     # The bound is the issue's 1.5 noise floors for an effect, not 1.
     # The reference's truth is in the registered `resonance`'s parameters.
@@ -273,7 +273,7 @@ def test_resolver_sides_are_settled_only_by_readings_of_one_sign_at_both_ends():
 def test_the_fusions_deflection_is_the_modes_quasi_static_one():
     # Under a constant acceleration the mode settles at y = -w'/wn^2; the
     # gyro's integral then runs (r + c) y ahead of the motor side, which
-    # the fusion's moving average keeps out. `fusion_deflection` gives it
+    # the fusion's moving average keeps out. `fusion_gain` gives it
     # back: equal to the kernel's own settled deflection under that drive.
     mode = {"freq_hz": 25.0, "damping_ratio": 0.3, "payload_fraction": 0.2}
     ones = np.ones(4)
@@ -290,4 +290,4 @@ def test_the_fusions_deflection_is_the_modes_quasi_static_one():
     accel = 2e-5 * u / DT  # the centre of mass's [rad/s^2]
     settled = (1.0 + cols["payload_ratio"]) * kstate[0, 1]
     batched = make_batched("resonance", {"coupling": 1.0, **mode}, DT)
-    assert batched.fusion_deflection(np.array([accel])) == pytest.approx(settled, rel=1e-3)
+    assert batched.fusion_gain() * accel == pytest.approx(settled, rel=1e-3)

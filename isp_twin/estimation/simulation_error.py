@@ -82,7 +82,7 @@ class RunStack:
             angle settles where ``angle`` is the fused one, int8 (R, N)
             (`resolver_sides`); None: none.
         fusion_accel: there, the fusion window's mean acceleration (R, N)
-            [rad/s^2] (`isp_twin.model.effects.base.Effect.fusion_deflection`).
+            [rad/s^2] (`isp_twin.model.effects.base.Effect.fusion_gain`).
     """
 
     names: tuple[str, ...]
@@ -273,36 +273,38 @@ def predict(
                 spec.name, {k: np.full(p * r, v) for k, v in spec.params.items()}, stack.dt
             )
         )
+    angle, resolver_side = _side_angles(stack, batch, p)
     resp = simulate_substeps(
         RateParams.from_vector(rows),
         np.tile(stack.u, (p, 1)),
         stack.dt,
         omega0=_initial_rates(stack, batch, p),
         angle0=np.tile(stack.angle[:, 0], p),
-        angle_measured=_side_angles(stack, batch, p),
+        angle_measured=angle,
         effects=batch,
         side=stack.side,
         integration=stack.integration,
         gyro_average=stack.gyro_average,
         side_follows_gyro=stack.side_follows_gyro,
-        resolver_side=None if stack.resolver_side is None else np.tile(stack.resolver_side, (p, 1)),
+        resolver_side=resolver_side,
     )
     return _diverged_held(resp).mapped(lambda a: a.reshape(p, r, n))
 
 
-def _side_angles(stack: RunStack, effects: Sequence, p: int) -> np.ndarray:
-    """The angle choosing the half-plane per row (P*R, N): the stack's, and
-    where it is the fused one what its smoothing took off a deflection the
-    model takes off itself (`Effect.fusion_deflection`)."""
+def _side_angles(stack: RunStack, effects: Sequence, p: int):
+    """The angle choosing the half-plane per row (P*R, N) and the resolver's
+    sides (or None). The stack's angle; where it is the fused one and an
+    effect deflects the gyro from the motor side, plus what the fusion's
+    smoothing took off that deflection (`Effect.fusion_gain`), with the
+    sides the resolver settles. Rows without such an effect need neither."""
     angle = np.tile(stack.angle, (p, 1))
-    if stack.fusion_accel is None or not stack.side_follows_gyro:
-        return angle
+    gains = [g for g in (e.fusion_gain() for e in effects) if np.ndim(g)]
+    if stack.fusion_accel is None or not stack.side_follows_gyro or not gains:
+        return angle, None
     accel = np.tile(stack.fusion_accel, (p, 1))
-    for e in effects:
-        deflection = e.fusion_deflection(accel)
-        if np.ndim(deflection):
-            angle += deflection
-    return angle
+    for gain in gains:
+        angle += gain[:, None] * accel
+    return angle, np.tile(stack.resolver_side, (p, 1))
 
 
 def _diverged_held(resp):

@@ -152,7 +152,7 @@ class MeasuredData:
         resolver: the angle as measured [rad] where `angle` is the fused
             one (`isp_twin.identification.side_angle.with_side_angle`), else None.
         fusion_accel: there, the fusion window's mean of the rate's
-            derivative [rad/s^2] (`Effect.fusion_deflection`), else None.
+            derivative [rad/s^2] (`Effect.fusion_gain`), else None.
     """
 
     name: str

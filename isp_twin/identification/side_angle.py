@@ -77,11 +77,16 @@ def fusion_noise(data: MeasuredData, window: int = FUSION_WINDOW) -> float:
 def _fused(omega: np.ndarray, data: MeasuredData, window: int) -> np.ndarray:
     integral = np.cumsum(omega) * data.dt
     gap = data.angle - integral
-    n = gap.shape[0]
-    w = max(1, min(window, n if n % 2 else n - 1))
+    w = _odd_window(window, gap.shape[0])
     padded = np.pad(gap, w // 2, mode="edge")
     smooth = np.convolve(padded, np.ones(w) / w, mode="valid")
     return integral + smooth
+
+
+def _odd_window(window: int, n: int) -> int:
+    """The fusion's window on a run of n samples: `window`, at most the
+    run's length, odd (a centred average)."""
+    return max(1, min(window, n if n % 2 else n - 1))
 
 
 def at_boundary(data: MeasuredData, fused: np.ndarray, window: int = FUSION_WINDOW) -> np.ndarray:
@@ -152,7 +157,7 @@ def with_side_angle(data: MeasuredData, side_source: str, shift: float = 0.0) ->
     model's side keeps on a two-mass axis
     (`isp_twin.estimation.simulation_error.resolver_sides`), with the
     fusion window's mean acceleration (`window_accel`,
-    `isp_twin.model.effects.base.Effect.fusion_deflection`)."""
+    `isp_twin.model.effects.base.Effect.fusion_gain`)."""
     angle = side_angle(data, side_source, shift)
     if side_source != "measured":
         return replace(data, angle=angle, resolver=None, fusion_accel=None)
@@ -166,10 +171,10 @@ def window_accel(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
     [rad/s^2], shape (N,): the rate's change across the window over its span.
     0 within half a window of the run's ends, where the fusion's window is
     padded: an axis starting from rest has not the quasi-static deflection
-    `Effect.fusion_deflection` assumes (dev resonance seed 1005, a start
+    `Effect.fusion_gain` assumes (dev resonance seed 1005, a start
     at 0.01 deg under a full step: train2 1.01 -> 1.21 noise floors with it)."""
     n = data.omega.shape[0]
-    half = max(1, min(window, n if n % 2 else n - 1)) // 2
+    half = _odd_window(window, n) // 2
     padded = np.pad(np.asarray(data.omega, dtype=float), half, mode="edge")
     accel = (padded[2 * half :] - padded[:n]) / (2 * half * data.dt)
     accel[:half] = 0.0

@@ -108,13 +108,13 @@ class Effect:
         sample after sample by default (see `command_run`)."""
         return _per_sample(self.measure, rate)
 
-    def fusion_deflection(self, accel: np.ndarray) -> np.ndarray | float:
+    def fusion_gain(self) -> np.ndarray | float:
         """What the fused angle's smoothing took off the gyro's deflection
-        from the motor side [rad], given the fusion window's mean of the
-        measured rate's derivative ``accel`` (rows, N) [rad/s^2]
-        (`isp_twin.identification.side_angle.with_side_angle`): the fused
-        angle plus this is the payload's angle less the deflection the
-        sub-stepped model takes off itself. None by default (0)."""
+        from the motor side, per unit of the fusion window's mean of the
+        measured rate's derivative [rad per rad/s^2 = s^2], per row or a
+        float (`isp_twin.identification.side_angle.with_side_angle`): the
+        fused angle plus it times that mean is the payload's angle less the
+        deflection the sub-stepped model takes off itself. 0: no deflection."""
         return 0.0
 
     #: Whether `true_rate` maps a reading back (a sensor error known at rest).

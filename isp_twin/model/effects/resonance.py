@@ -109,8 +109,8 @@ class Resonance(Effect):
                     f"effect 'resonance': payload_fraction must be in [0, 1) (J2/J), got {bad:g}"
                 )
 
-    def fusion_deflection(self, accel: np.ndarray) -> np.ndarray:
-        """`Effect.fusion_deflection`: the gyro reads ``w1 + (r + c) y'``,
+    def fusion_gain(self) -> np.ndarray:
+        """`Effect.fusion_gain`: the gyro reads ``w1 + (r + c) y'``,
         so its integral, which the fused angle follows, is the motor side's
         angle plus (r + c) y; the fusion's moving average keeps only the
         resolver's part of the slow deflection, the mode's quasi-static
@@ -122,8 +122,7 @@ class Resonance(Effect):
         f = np.asarray(self.params["payload_fraction"], dtype=float)
         k = f / (1.0 - f) + np.asarray(self.params["coupling"], dtype=float)
         wn = 2.0 * np.pi * np.asarray(self.params["freq_hz"], dtype=float)
-        gain = -k / (wn * wn)
-        return (gain[..., None] if np.ndim(gain) else gain) * accel
+        return -k / (wn * wn)
 
     def reset(self) -> None:
         self._phi, self._gamma = _discretize(
