@@ -12,6 +12,7 @@ import numpy as np
 from isp_twin.identification.cost import rate_noise
 from isp_twin.identification.gyro_error import gyro_error_estimate, rate_behind_gyro_error
 from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.motor_side import motor_side_rates, payload_mode
 from isp_twin.identification.side_angle import side_angle
 from isp_twin.model.effects import Effect, effect_class, make_effect
 from isp_twin.model.effects.base import true_rates
@@ -189,10 +190,16 @@ def _regression_rows(data, side_source, rest, effects) -> _Rows:
     """Moving and breakaway samples of all runs, known `effects` taken out."""
     parts = []
     offset = 0
+    payload = payload_mode(effects) if side_source == "measured" else None
     for d in data:
         w0, w1 = d.omega[:-1], d.omega[1:]
         y = side_angle(d, side_source)[:-1]
         u0, more = _effect_drive(d, y, effects)
+        change, rest_d = None, rest
+        if payload is not None:
+            # A two-mass axis: the motor side's rows, the centre of mass's
+            # change in the target (`_payload_rows`).
+            w0, w1, change, y, rest_d = _payload_rows(d, payload, rest)
         # Motion, rest and breakaway are read from the measured rates; only
         # the regression's target has the known effects taken out. Read
         # from the target, a stuck axis held by a strong spring (the effect's
@@ -200,19 +207,20 @@ def _regression_rows(data, side_source, rest, effects) -> _Rows:
         # breakaway, against the spring: reference cable spring seed 14
         # (23.9 1/s^2) started regimes R+ and L- at no friction and no gain
         # with the true spring held (docs/identification.md "Stop 27").
-        moving = (np.abs(w0) > rest) & (np.abs(w1) > rest) & (np.sign(w1) == np.sign(w0))
+        moving = (np.abs(w0) > rest_d) & (np.abs(w1) > rest_d) & (np.sign(w1) == np.sign(w0))
         # A breakaway moves the way the total drive (command and known
         # effects) pushes: its direction is that of the motion it starts.
-        breakaway = (np.abs(w0) <= rest) & (np.abs(w1) > rest)
+        breakaway = (np.abs(w0) <= rest_d) & (np.abs(w1) > rest_d)
         use = moving | breakaway
         regime = np.where(moving, regime_index(y, w0), regime_index(y, w1))
         sgn = np.where(moving, np.sign(w0), np.sign(w1))
-        w1 = w1 - more
+        before = np.where(moving, w0, 0.0)
+        target = (w1 if change is None else before + change) - more
         parts.append(
             (
                 regime[use],
-                np.where(moving, w0, 0.0)[use],
-                w1[use],
+                before[use],
+                target[use],
                 u0[use],
                 sgn[use],
                 np.where(moving, np.abs(w0), 0.0)[use],
@@ -224,6 +232,20 @@ def _regression_rows(data, side_source, rest, effects) -> _Rows:
         offset += w0.size
     cols = [np.concatenate([p[i] for p in parts]) if parts else np.empty(0) for i in range(9)]
     return _Rows(*cols)
+
+
+def _payload_rows(d: MeasuredData, payload: EffectSpec, rest: float):
+    """A two-mass run's rows (`motor_side_rates`): the motor side's rate
+    before and after each step (friction, viscous torque and the stick
+    test act on it), the centre of mass's rate change over each step (the
+    target is the rate before plus that change: the total torque over J
+    against the motor side's rate), the resolver's angle for the side,
+    and the rest level, at least four of the smoother's standard deviations.
+    """
+    est = motor_side_rates(d, payload)
+    angle = d.angle if d.resolver is None else d.resolver
+    rest = max(rest, 4.0 * est.motor_sd)
+    return est.motor[:-1], est.motor[1:], np.diff(est.centre), angle[:-1], rest
 
 
 #: Effects `joint_equation_error_estimate` estimates with the base.
