@@ -12,10 +12,12 @@ ended at 30-800 noise floors from there (docs/identification.md, "Stop 31").
 
 The mode is known where it is held, so the motor side is estimated from
 both sensors by a linear smoother (`motor_side_rates`): a steady-state
-Kalman filter and Rauch-Tung-Striebel smoother over the centre-of-mass
-angle and rate and the mode, ``x = (Theta, w, y, y', theta_g(k-1))``, with
-the centre-of-mass acceleration as white noise (the unknown drive and
-friction). The measurements are the resolver, ``Theta - r y`` at the
+Kalman filter and Rauch-Tung-Striebel smoother over the centre of mass's
+angle, rate and acceleration and the mode,
+``x = (Theta, w, w', y, y', theta_g(k-1))``, the acceleration a random walk
+(the unknown drive and friction: steady between breakaways and stops, so a
+white acceleration instead left 2-3x the error on reference seeds 30, 33
+and 38). The measurements are the resolver, ``Theta - r y`` at the
 sample (r = f/(1 - f)), and the gyro averaged over the sample, the change
 of its angle ``Theta + c y`` over the sample divided by the period.
 Neither sensor alone will do: the resolver's difference quotient carries
@@ -74,9 +76,9 @@ def motor_side_rates(d: MeasuredData, mode: EffectSpec) -> MotorSide:
     The resolver's angle is ``d.resolver`` where the run carries the fused
     angle, else ``d.angle``; its noise is its quantization step (the
     smallest change it reads) over sqrt(12); the gyro's is `rate_noise`.
-    The acceleration's intensity is the gyro's mean squared change per
-    sample over the period, which the ringing makes generous: the smoother
-    then follows the sensors rather than the random walk.
+    The jerk's intensity is the gyro's mean squared second difference over
+    the period cubed, which the ringing makes generous: the smoother then
+    follows the sensors rather than its random walk.
     """
     theta = np.asarray(d.angle if d.resolver is None else d.resolver, dtype=float)
     gyro = np.asarray(d.omega, dtype=float)
@@ -86,43 +88,45 @@ def motor_side_rates(d: MeasuredData, mode: EffectSpec) -> MotorSide:
     step = np.abs(np.diff(theta))
     step = step[step > 0.0]
     lsb = float(np.min(step)) if step.size else 1e-6
-    q = max(float(np.mean(np.diff(gyro) ** 2)) / d.dt, 1e-12)
+    q = max(float(np.mean(np.diff(gyro, 2) ** 2)) / d.dt**3, 1e-12)
     big_f, big_q = _transition(float(p["freq_hz"]), float(p["damping_ratio"]), c, q, d.dt)
-    h = np.array([[1.0, 0.0, -r, 0.0, 0.0], [1.0, 0.0, c, 0.0, -1.0]])
+    h = np.array([[1.0, 0.0, 0.0, -r, 0.0, 0.0], [1.0, 0.0, 0.0, c, 0.0, -1.0]])
     h[1] /= d.dt
     noise = np.diag([lsb * lsb / 12.0, max(rate_noise([d]), 1e-9) ** 2])
     z = np.column_stack([theta, gyro])
-    x0 = np.array([theta[0], gyro[0], 0.0, 0.0, theta[0] - gyro[0] * d.dt])
-    states, sd = _smoothed(big_f, big_q, h, noise, z, x0, r)
-    return MotorSide(states[:, 1] - r * states[:, 3], states[:, 1], sd)
+    x0 = np.array([theta[0], gyro[0], 0.0, 0.0, 0.0, theta[0] - gyro[0] * d.dt])
+    motor = np.array([0.0, 1.0, 0.0, 0.0, -r, 0.0])
+    states, sd = _smoothed(big_f, big_q, h, noise, z, x0, motor)
+    return MotorSide(states @ motor, states[:, 1], sd)
 
 
 def _transition(freq_hz: float, zeta: float, c: float, q: float, dt: float):
-    """The augmented state's transition (5, 5) and process noise (5, 5) over
+    """The augmented state's transition (6, 6) and process noise (6, 6) over
     one sample (Van Loan's matrix exponential of the continuous model)."""
     wn = 2.0 * np.pi * freq_hz
-    a = np.zeros((4, 4))
-    a[0, 1] = a[2, 3] = 1.0
-    a[3, 2], a[3, 3] = -wn * wn, -2.0 * zeta * wn
-    g = np.array([0.0, 1.0, 0.0, -1.0])  # w' = a_cm, y'' = ... - a_cm
-    m = np.zeros((8, 8))
-    m[:4, :4], m[:4, 4:], m[4:, 4:] = -a, q * np.outer(g, g), a.T
+    a = np.zeros((5, 5))  # (Theta, w, w', y, y')
+    a[0, 1] = a[1, 2] = a[3, 4] = 1.0
+    a[4, 2], a[4, 3], a[4, 4] = -1.0, -wn * wn, -2.0 * zeta * wn
+    g = np.array([0.0, 0.0, 1.0, 0.0, 0.0])  # white jerk
+    m = np.zeros((10, 10))
+    m[:5, :5], m[:5, 5:], m[5:, 5:] = -a, q * np.outer(g, g), a.T
     e = expm(m * dt)
-    ad = e[4:, 4:].T
-    big_f = np.zeros((5, 5))
-    big_f[:4, :4] = ad
-    big_f[4, 0], big_f[4, 2] = 1.0, c  # the gyro's angle at the sample just ended
-    big_q = np.zeros((5, 5))
-    big_q[:4, :4] = ad @ e[:4, 4:]
+    ad = e[5:, 5:].T
+    big_f = np.zeros((6, 6))
+    big_f[:5, :5] = ad
+    big_f[5, 0], big_f[5, 3] = 1.0, c  # the gyro's angle at the sample just ended
+    big_q = np.zeros((6, 6))
+    big_q[:5, :5] = ad @ e[:5, 5:]
     return big_f, 0.5 * (big_q + big_q.T)
 
 
-def _smoothed(big_f, big_q, h, noise, z, x0, r) -> tuple[np.ndarray, float]:
+def _smoothed(big_f, big_q, h, noise, z, x0, out_row) -> tuple[np.ndarray, float]:
     """Steady-state Kalman filter and Rauch-Tung-Striebel smoother: the
-    smoothed states (N, 5) and the standard deviation of ``w - r y'``."""
+    smoothed states (N, 6) and the standard deviation of ``out_row @ x``."""
+    n = big_f.shape[0]
     pp = solve_discrete_are(big_f.T, h.T, big_q, noise)
     gain = pp @ h.T @ np.linalg.inv(h @ pp @ h.T + noise)
-    pf = (np.eye(5) - gain @ h) @ pp
+    pf = (np.eye(n) - gain @ h) @ pp
     back = pf @ big_f.T @ np.linalg.inv(pp)
     # The smoothed covariance's backward recursion, run to its fixed point
     # (the Lyapunov solver is ill-conditioned: the angle is an integrator).
@@ -133,15 +137,15 @@ def _smoothed(big_f, big_q, h, noise, z, x0, r) -> tuple[np.ndarray, float]:
         ps = nxt
         if done:
             break
-    ahead = (np.eye(5) - gain @ h) @ big_f
+    ahead = (np.eye(n) - gain @ h) @ big_f
     kz = z @ gain.T
-    filt = np.empty((z.shape[0], 5))
-    x = x0
-    for k in range(z.shape[0]):
-        x = kz[k] + (ahead @ x if k else x0 - gain @ (h @ x0))
+    filt = np.empty((z.shape[0], n))
+    x = x0 + gain @ (z[0] - h @ x0)
+    filt[0] = x
+    for k in range(1, z.shape[0]):
+        x = kz[k] + ahead @ x
         filt[k] = x
     out = filt.copy()
     for k in range(z.shape[0] - 2, -1, -1):
         out[k] = filt[k] + back @ (out[k + 1] - big_f @ filt[k])
-    e = np.array([0.0, 1.0, 0.0, -r, 0.0])
-    return out, float(np.sqrt(max(e @ ps @ e, 0.0)))
+    return out, float(np.sqrt(max(out_row @ ps @ out_row, 0.0)))
