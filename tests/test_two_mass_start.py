@@ -10,11 +10,15 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from isp_twin.diagnosis.residual import ResidualContext
+from isp_twin.estimation.simulation_error import stack_runs
 from isp_twin.identification.cost import rmse
 from isp_twin.identification.equation_error import equation_error_estimate
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.motor_side import motor_side_rates, payload_mode
 from isp_twin.identification.read_out import Timing
+from isp_twin.identification.side_angle import with_side_angle
+from isp_twin.model.effects.resonance import Resonance
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
 from isp_twin.reference import design_experiment
 from isp_twin.units import DEG
@@ -121,3 +125,43 @@ def test_only_a_two_mass_payload_changes_the_rows():
     assert payload_mode([EffectSpec("cogging", {"amplitude": 1.0})]) is None
     held = EffectSpec("resonance", {**mode, "payload_fraction": 0.2})
     assert payload_mode([EffectSpec("cogging", {"amplitude": 1.0}), held]) is held
+
+
+def _context(effect: str | None, seed: int, residual_seed: int = 0):
+    """The training runs of a reference axis as diagnose stacks them (fused
+    angle, resolver beside it), with a white residual: no peak of its own."""
+    exp = design_experiment(seed, effect)
+    runs = [
+        with_side_angle(MeasuredData(n, r.t, r.u, r.omega, r.theta, None, DT), "measured")
+        for n, r in ((n, exp.runs[n]) for n in ("train1", "train2"))
+    ]
+    stack = stack_runs(runs)
+    n = stack.n_samples
+    flat = stack.flat
+    return exp, ResidualContext(
+        u=flat(stack.u),
+        angle=flat(stack.angle),
+        rate=flat(stack.omega),
+        residual=np.random.default_rng(residual_seed).normal(0.0, 1e-3, n),
+        accel=np.zeros(n),
+        moving=np.ones(n, bool),
+        run_id=np.zeros(n, int),
+        dt=DT,
+        deflection_rate=None if stack.deflection_rate is None else flat(stack.deflection_rate),
+    )
+
+
+@pytest.mark.parametrize("seed", [30, 38])
+def test_the_resonance_guesses_a_strong_payloads_mode_from_the_sensors(seed):
+    exp, ctx = _context("resonance", seed)
+    mode = exp.truth()["effects"][0]["params"]
+    free = mode["freq_hz"]
+    clamped = free * np.sqrt(1.0 - mode["payload_fraction"])
+    freqs = {g["freq_hz"] for g in Resonance.guesses(ctx) if g["payload_fraction"] == 0.0}
+    assert any(0.9 * clamped <= f <= 1.1 * free for f in freqs)
+
+
+@pytest.mark.parametrize("effect", [None, "lugre"])
+def test_no_deflection_peak_stands_out_without_a_payload(effect):
+    _, ctx = _context(effect, 1)
+    assert Resonance._deflection_peak(ctx) == []

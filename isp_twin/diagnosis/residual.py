@@ -63,6 +63,9 @@ class ResidualContext:
             mean of ``-accel * sign(rate)`` over the moving samples [rad/s^2]
             (0: not known). With `coulomb_rad_s2`, what a guess of a
             friction-like effect (LuGre's bristle force) is scaled by.
+        deflection_rate: the gyro minus the resolver's difference quotient
+            [rad/s] where the runs carry both (`RunStack.deflection_rate`),
+            else None.
     """
 
     u: np.ndarray
@@ -75,6 +78,7 @@ class ResidualContext:
     dt: float
     coulomb_rad_s2: float = float("nan")
     friction_deficit_rad_s2: float = 0.0
+    deflection_rate: np.ndarray | None = None
 
 
 def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
@@ -111,6 +115,7 @@ def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
         dt=stack.dt,
         coulomb_rad_s2=coulomb,
         friction_deficit_rad_s2=deficit if sliding.any() else 0.0,
+        deflection_rate=None if stack.deflection_rate is None else f(stack.deflection_rate),
     )
 
 

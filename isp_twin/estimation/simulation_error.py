@@ -83,6 +83,10 @@ class RunStack:
             (`resolver_sides`); None: none.
         fusion_accel: there, the fusion window's mean acceleration (R, N)
             [rad/s^2] (`isp_twin.model.effects.base.Effect.fusion_gain`).
+        deflection_rate: there, the gyro's reading minus the resolver's
+            difference quotient (R, N) [rad/s], 0 at each run's first
+            sample: the rate of a payload's deflection against the motor
+            side as the two sensors see it (`Resonance.guesses`).
     """
 
     names: tuple[str, ...]
@@ -99,6 +103,7 @@ class RunStack:
     side_follows_gyro: bool = True
     resolver_side: np.ndarray | None = None
     fusion_accel: np.ndarray | None = None
+    deflection_rate: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
@@ -160,8 +165,6 @@ def stack_runs(
     shape = (len(runs), n)
     u, omega, angle = np.zeros(shape), np.zeros(shape), np.zeros(shape)
     mask = np.zeros(shape, dtype=bool)
-    known, accel = np.zeros(shape, dtype=np.int8), np.zeros(shape)
-    fused = False  # a run with the fused angle (`resolver_sides`)
     first, levels = np.zeros(len(runs)), np.zeros(len(runs))
     for i, r in enumerate(runs):
         m = len(r.u)
@@ -169,10 +172,6 @@ def stack_runs(
         omega[i, :m] = r.omega
         angle[i, :m] = r.angle
         angle[i, m:] = r.angle[-1]
-        if getattr(r, "resolver", None) is not None:
-            fused = True
-            known[i, :m] = resolver_sides(r.resolver)
-            accel[i, :m] = r.fusion_accel
         mask[i, min(max(warmup, 1), m - 1) : m] = True
         # The first measured rate is the initial state; a reading within the
         # rest level is rest (the stiction branch of Eq. 5), not a slow
@@ -185,8 +184,27 @@ def stack_runs(
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
     stacked = (names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels)
+    sensors = _resolver_columns(runs, shape, dt)
+    fused = sensors[0] is not None
     follows = fused if side_follows_gyro is None else side_follows_gyro
-    return RunStack(*stacked, follows, known if fused else None, accel if fused else None)
+    return RunStack(*stacked, follows, *sensors)
+
+
+def _resolver_columns(runs: Sequence, shape: tuple[int, int], dt: float) -> tuple:
+    """`RunStack`'s resolver_side, fusion_accel and deflection_rate, from the
+    runs that carry the fused angle with the resolver's beside it
+    (`side_angle.with_side_angle`); three Nones where none does."""
+    if all(getattr(r, "resolver", None) is None for r in runs):
+        return None, None, None
+    known, accel, slip = np.zeros(shape, dtype=np.int8), np.zeros(shape), np.zeros(shape)
+    for i, r in enumerate(runs):
+        if getattr(r, "resolver", None) is None:
+            continue
+        m = len(r.u)
+        known[i, :m] = resolver_sides(r.resolver)
+        accel[i, :m] = r.fusion_accel
+        slip[i, 1:m] = np.asarray(r.omega[1:], float) - np.diff(r.resolver) / dt
+    return known, accel, slip
 
 
 def resolver_sides(angle: np.ndarray) -> np.ndarray:
