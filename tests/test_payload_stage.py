@@ -60,3 +60,15 @@ def test_a_refit_near_the_sensors_peak_keeps_its_own_mode(monkeypatch, refits):
     monkeypatch.setattr(rounds, "_payload_peak", lambda data: 7.3)
     rounds._payload_stage(None, _state(), ["lugre", "resonance"])
     assert all(h["freq_hz"] == 7.1 and h["damping_ratio"] == 0.01 for h in refits)
+
+
+def test_the_sensors_peak_refits_a_payload_whose_local_refit_failed(monkeypatch, refits):
+    monkeypatch.setattr(rounds, "_payload_peak", lambda data: 44.3)
+    st = _state()
+    st.failed = {"resonance"}
+    rounds._payload_stage(None, st, ["lugre", "resonance"])
+    assert [h["freq_hz"] for h in refits] == [44.3] * len(rounds.PAYLOAD_FRACTIONS)
+    monkeypatch.setattr(rounds, "_payload_peak", lambda data: None)
+    refits.clear()
+    rounds._payload_stage(None, st, ["lugre", "resonance"])
+    assert refits == []

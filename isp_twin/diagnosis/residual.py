@@ -64,8 +64,7 @@ class ResidualContext:
             (0: not known). With `coulomb_rad_s2`, what a guess of a
             friction-like effect (LuGre's bristle force) is scaled by.
         deflection_rate: the gyro minus the resolver's difference quotient
-            [rad/s] where the runs carry both (`RunStack.deflection_rate`),
-            else None.
+            [rad/s] (`RunStack.deflection_rate`), or None.
     """
 
     u: np.ndarray

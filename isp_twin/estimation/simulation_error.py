@@ -83,10 +83,11 @@ class RunStack:
             (`resolver_sides`); None: none.
         fusion_accel: there, the fusion window's mean acceleration (R, N)
             [rad/s^2] (`isp_twin.model.effects.base.Effect.fusion_gain`).
-        deflection_rate: there, the gyro's reading minus the resolver's
-            difference quotient (R, N) [rad/s], 0 at each run's first
-            sample: the rate of a payload's deflection against the motor
-            side as the two sensors see it (`Resonance.guesses`).
+        deflection_rate: the rate reading minus the difference quotient of
+            the measured angle (the resolver's where ``angle`` is the fused
+            one) (R, N) [rad/s], 0 at each run's first sample: the rate of a
+            payload's deflection against the motor side as the gyro and the
+            resolver see it (`Resonance.deflection_peak`); None: not known.
     """
 
     names: tuple[str, ...]
@@ -184,27 +185,39 @@ def stack_runs(
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
     stacked = (names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels)
-    sensors = _resolver_columns(runs, shape, dt)
-    fused = sensors[0] is not None
+    known, accel = _resolver_columns(runs, shape)
+    fused = known is not None
     follows = fused if side_follows_gyro is None else side_follows_gyro
-    return RunStack(*stacked, follows, *sensors)
+    return RunStack(*stacked, follows, known, accel, _deflection_rates(runs, shape, dt))
 
 
-def _resolver_columns(runs: Sequence, shape: tuple[int, int], dt: float) -> tuple:
-    """`RunStack`'s resolver_side, fusion_accel and deflection_rate, from the
-    runs that carry the fused angle with the resolver's beside it
-    (`side_angle.with_side_angle`); three Nones where none does."""
+def _resolver_columns(runs: Sequence, shape: tuple[int, int]) -> tuple:
+    """`RunStack`'s resolver_side and fusion_accel, from the runs that carry
+    the fused angle with the resolver's beside it
+    (`side_angle.with_side_angle`); two Nones where none does."""
     if all(getattr(r, "resolver", None) is None for r in runs):
-        return None, None, None
-    known, accel, slip = np.zeros(shape, dtype=np.int8), np.zeros(shape), np.zeros(shape)
+        return None, None
+    known, accel = np.zeros(shape, dtype=np.int8), np.zeros(shape)
     for i, r in enumerate(runs):
-        if getattr(r, "resolver", None) is None:
-            continue
+        if getattr(r, "resolver", None) is not None:
+            known[i, : len(r.u)] = resolver_sides(r.resolver)
+            accel[i, : len(r.u)] = r.fusion_accel
+    return known, accel
+
+
+def _deflection_rates(runs: Sequence, shape: tuple[int, int], dt: float) -> np.ndarray:
+    """`RunStack.deflection_rate`: each run's rate reading minus the
+    difference quotient of its measured angle (the resolver's, kept beside a
+    fused angle), 0 at each run's first sample and beyond its end."""
+    slip = np.zeros(shape)
+    for i, r in enumerate(runs):
+        measured = getattr(r, "resolver", None)
+        measured = r.angle if measured is None else measured
         m = len(r.u)
-        known[i, :m] = resolver_sides(r.resolver)
-        accel[i, :m] = r.fusion_accel
-        slip[i, 1:m] = np.asarray(r.omega[1:], float) - np.diff(r.resolver) / dt
-    return known, accel, slip
+        slip[i, 1:m] = (
+            np.asarray(r.omega[1:m], float) - np.diff(np.asarray(measured[:m], float)) / dt
+        )
+    return slip
 
 
 def resolver_sides(angle: np.ndarray) -> np.ndarray:

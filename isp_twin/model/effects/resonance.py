@@ -230,7 +230,8 @@ class Resonance(Effect):
             return None
         freqs, smooth, band = spectrum
         i = band[np.argmax(smooth[band])]
-        if smooth[i] < DEFLECTION_PROMINENCE * np.median(smooth[band]):
+        floor = np.median(smooth[band])
+        if not floor > 0.0 or smooth[i] < DEFLECTION_PROMINENCE * floor:
             return None
         return float(freqs[i])
 
