@@ -17,6 +17,7 @@ from isp_twin.identification.equation_error import equation_error_estimate
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.motor_side import motor_side_rates, payload_mode
 from isp_twin.identification.read_out import Timing
+from isp_twin.identification.report import payload_hint
 from isp_twin.identification.side_angle import with_side_angle
 from isp_twin.model.effects.resonance import Resonance
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
@@ -168,3 +169,24 @@ def test_the_resonance_guesses_a_strong_payloads_mode_from_the_sensors(seed, fus
 def test_no_deflection_peak_stands_out_without_a_payload(effect):
     _, ctx = _context(effect, 1)
     assert Resonance._deflection_peak(ctx) == []
+
+
+def _runs(effect: str | None, seed: int):
+    exp = design_experiment(seed, effect)
+    return [
+        MeasuredData(n, r.t, r.u, r.omega, r.theta, None, DT)
+        for n, r in ((n, exp.runs[n]) for n in ("train1", "train2"))
+    ]
+
+
+def test_identify_names_the_mode_the_sensors_show():
+    hint = payload_hint(_runs("resonance", 30))
+    assert "resonance" in hint
+    # Between the clamped (22.7 Hz) and the free (25.5 Hz) frequency, or near.
+    freq = float(hint.split("near ")[1].split(" Hz")[0])
+    assert 0.9 * 22.7 <= freq <= 1.1 * 25.5
+
+
+@pytest.mark.parametrize("effect", [None, "sensor_bias"])
+def test_identify_names_no_mode_without_a_payload(effect):
+    assert payload_hint(_runs(effect, 1)) == ""
