@@ -200,8 +200,9 @@ def _regression_rows(data, side_source, rest, effects) -> _Rows:
             # A two-mass axis: the motor side's rows, the centre of mass's
             # change in the target (`_payload_rows`).
             w0, w1, change, y, rest_d = _payload_rows(d, payload, rest)
-        # Motion, rest and breakaway are read from the measured rates; only
-        # the regression's target has the known effects taken out. Read
+        # Motion, rest and breakaway are read from the measured rates (on a
+        # two-mass axis the smoothed motor side's); only the regression's
+        # target has the known effects taken out. Read
         # from the target, a stuck axis held by a strong spring (the effect's
         # rate change per sample above the rest level) counted as a
         # breakaway, against the spring: reference cable spring seed 14

@@ -12,8 +12,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
-
+from isp_twin.estimation.simulation_error import stack_runs
 from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
 from isp_twin.identification.cost import rmse, simulate_data
 from isp_twin.identification.fit import IdentificationResult
@@ -95,8 +94,8 @@ def identification_verdict(
 
 def payload_hint(runs: Sequence[MeasuredData]) -> str:
     """A sentence for the advice where the gyro and the angle sensor show a
-    payload's mode between them (`Resonance.deflection_peak` of the rate
-    reading minus the angle's difference quotient), else "".
+    payload's mode between them (`Resonance.deflection_peak` of the runs'
+    `RunStack.deflection_rate`), else "".
 
     A strong payload leaves Eq. 6 hundreds of noise floors off whatever the
     search does (reference resonance seed 30: 1860), and says so in the
@@ -104,8 +103,8 @@ def payload_hint(runs: Sequence[MeasuredData]) -> str:
     """
     if not runs or any(len(d) < 8 for d in runs):
         return ""
-    rate = np.concatenate([d.omega[1:] - np.diff(d.angle) / d.dt for d in runs])
-    peak = Resonance.deflection_peak(rate, runs[0].dt)
+    stack = stack_runs(runs)
+    peak = Resonance.deflection_peak(stack.flat(stack.deflection_rate), stack.dt)
     if peak is None:
         return ""
     return (

@@ -176,10 +176,10 @@ class Resonance(Effect):
     @classmethod
     def guesses(cls, ctx) -> list[dict[str, float]]:
         """The peaks of `_peaks` (the frequency is searched on them, not by
-        the local fit), each with a
-        grid of damping ratios and of gyro-only couplings (f = 0) and
-        two-mass payloads (coupling 1, f = 0.08 and 0.2; the peak taken as
-        the free and as the clamped frequency, ``free = clamped*sqrt(1 + r)``)."""
+        the local fit), each with a grid of damping ratios and of gyro-only
+        couplings (f = 0) and two-mass payloads (coupling 1, f = 0.08 and
+        0.2; the peak taken as the free and as the clamped frequency,
+        ``free = clamped*sqrt(1 + r)``)."""
         peaks = cls._peaks(ctx)
         if not peaks:
             peaks = [50.0]
@@ -208,7 +208,7 @@ class Resonance(Effect):
     @classmethod
     def _deflection_peak(cls, ctx) -> list[float]:
         """`deflection_peak` of the context's deflection rate, as a list."""
-        rate = getattr(ctx, "deflection_rate", None)
+        rate = ctx.deflection_rate
         peak = None if rate is None else cls.deflection_peak(rate, ctx.dt)
         return [] if peak is None else [peak]
 
