@@ -451,9 +451,8 @@ def _payload_stage(data, st, verdicts) -> list[Verdict]:
     if fit is None or rms_of(st.held_of[PAYLOAD]) <= CONVERGED_RATIO * st.floor:
         return verdicts
     peak = _payload_peak(data)
-    if PAYLOAD in st.failed and peak is None:
-        return verdicts
-    if fit.bic > min(f.bic for f in [st.base, *st.fits.values()]) and peak is None:
+    leads = fit.bic <= min(f.bic for f in [st.base, *st.fits.values()])
+    if peak is None and (PAYLOAD in st.failed or not leads):
         return verdicts
     mode = dict(fit.params)
     if peak is not None and abs(mode["freq_hz"] / peak - 1.0) > PEAK_MATCH:
