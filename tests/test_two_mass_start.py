@@ -142,6 +142,7 @@ def _context(effect: str | None, seed: int, fused: bool = True):
     stack = stack_runs(runs)
     n = stack.n_samples
     flat = stack.flat
+    deflection, lines = stack.deflection()
     return exp, ResidualContext(
         u=flat(stack.u),
         angle=flat(stack.angle),
@@ -151,7 +152,8 @@ def _context(effect: str | None, seed: int, fused: bool = True):
         moving=np.ones(n, bool),
         run_id=np.zeros(n, int),
         dt=DT,
-        deflection_rate=None if stack.deflection_rate is None else flat(stack.deflection_rate),
+        deflection_rate=deflection,
+        deflection_lines=lines,
     )
 
 

@@ -64,7 +64,9 @@ class ResidualContext:
             (0: not known). With `coulomb_rad_s2`, what a guess of a
             friction-like effect (LuGre's bristle force) is scaled by.
         deflection_rate: the gyro minus the resolver's difference quotient
-            [rad/s] (`RunStack.deflection_rate`), or None.
+            [rad/s] (`RunStack.deflection`), or None.
+        deflection_lines: beside it, the part of it the resolver's
+            quantization makes [rad/s] (`RunStack.deflection`), or None.
     """
 
     u: np.ndarray
@@ -78,6 +80,7 @@ class ResidualContext:
     coulomb_rad_s2: float = float("nan")
     friction_deficit_rad_s2: float = 0.0
     deflection_rate: np.ndarray | None = None
+    deflection_lines: np.ndarray | None = None
 
 
 def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
@@ -103,6 +106,7 @@ def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
     f = stack.flat
     rate, innovation, sliding = f(stack.omega), f(accel), f(moving)
     deficit = -float(np.mean(innovation[sliding] * np.sign(rate[sliding])))
+    deflection, lines = stack.deflection() or (None, None)
     return ResidualContext(
         u=f(stack.u),
         angle=f(angle_prev),
@@ -114,7 +118,8 @@ def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
         dt=stack.dt,
         coulomb_rad_s2=coulomb,
         friction_deficit_rad_s2=deficit if sliding.any() else 0.0,
-        deflection_rate=None if stack.deflection_rate is None else f(stack.deflection_rate),
+        deflection_rate=deflection,
+        deflection_lines=lines,
     )
 
 

@@ -475,10 +475,10 @@ def _payload_peak(data) -> float | None:
     (reference resonance seed 30: 1860 noise floors) that a friction-like
     candidate refitted from it led the training BIC (LuGre), and the
     payload's rate parameters were never identified with its mode held."""
-    train = data.train
-    if train.deflection_rate is None:
+    deflection = data.train.deflection()
+    if deflection is None:
         return None
-    return effect_class(PAYLOAD).deflection_peak(train.flat(train.deflection_rate), train.dt)
+    return effect_class(PAYLOAD).deflection_peak(*deflection, data.train.dt)
 
 
 def _global_cycles(data, g: CandidateFit) -> CandidateFit:

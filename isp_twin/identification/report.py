@@ -95,7 +95,7 @@ def identification_verdict(
 def payload_hint(runs: Sequence[MeasuredData]) -> str:
     """A sentence for the advice where the gyro and the angle sensor show a
     payload's mode between them (`Resonance.deflection_peak` of the runs'
-    `RunStack.deflection_rate`), else "".
+    `RunStack.deflection`), else "".
 
     A strong payload leaves Eq. 6 hundreds of noise floors off whatever the
     search does (reference resonance seed 30: 1860), and says so in the
@@ -104,7 +104,7 @@ def payload_hint(runs: Sequence[MeasuredData]) -> str:
     if not runs or any(len(d) < 8 for d in runs):
         return ""
     stack = stack_runs(runs)
-    peak = Resonance.deflection_peak(stack.flat(stack.deflection_rate), stack.dt)
+    peak = Resonance.deflection_peak(*stack.deflection(), stack.dt)
     if peak is None:
         return ""
     return (

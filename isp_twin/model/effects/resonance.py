@@ -18,6 +18,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d
 
 from isp_twin.errors import ParameterError
 from isp_twin.model.effects.base import Effect
@@ -63,6 +64,19 @@ def _discretize(freq_hz, damping_ratio, coupling, dt):
 #: sensor bias 0-1), 5.7-170 on the strong payloads of resonance seeds 30-43;
 #: the weak ones (2.5-3.2) are left to the residual's peaks.
 DEFLECTION_PROMINENCE = 5.0
+
+#: A peak of the deflection rate where the resolver's quantization alone
+#: (`RunStack.deflection`) reaches this share of its smoothed amplitude is
+#: the quantization's line, not a mode (`Resonance.deflection_peak`) [1].
+#: Saturation seed 4's plateau: 0.92 at its false 383 Hz peak, 0.65-1.0 at
+#: the next four; 0.00-0.24 at the modes of resonance seeds 30-33 and their
+#: side peaks (a peak 5 times above a floor the quantization makes reads
+#: about 0.2).
+QUANTIZATION_SHARE = 0.5
+#: How far from a peak the rebuilt quantization's spectrum is read, at its
+#: largest [Hz]: the distance at which two peaks are told apart
+#: (`Resonance._spectrum_peaks`).
+LINE_REACH_HZ = 3.0
 
 
 class Resonance(Effect):
@@ -209,15 +223,18 @@ class Resonance(Effect):
     def _deflection_peak(cls, ctx) -> list[float]:
         """`deflection_peak` of the context's deflection rate, as a list."""
         rate = ctx.deflection_rate
-        peak = None if rate is None else cls.deflection_peak(rate, ctx.dt)
+        peak = None if rate is None else cls.deflection_peak(rate, ctx.deflection_lines, ctx.dt)
         return [] if peak is None else [peak]
 
     @classmethod
-    def deflection_peak(cls, rate: np.ndarray, dt: float) -> float | None:
+    def deflection_peak(cls, rate: np.ndarray, lines: np.ndarray | None, dt: float) -> float | None:
         """The largest peak [Hz] of the payload's deflection rate as the gyro
-        and the resolver see it (`RunStack.deflection_rate`, the counted
-        samples), where it stands `DEFLECTION_PROMINENCE` times above the
-        band's median; else None.
+        and the resolver see it (`RunStack.deflection`, the counted samples),
+        where it stands `DEFLECTION_PROMINENCE` times above the band's
+        median; else None. A peak is a local maximum inside the band, not
+        its lower edge (where the spectrum of slow motion leaks in), nor one
+        the resolver's quantization makes: ``lines``, its part of the rate
+        (None: not known), reaches `QUANTIZATION_SHARE` of it there.
 
         The residual's spectrum shows the mode only where the base fits the
         friction: a base left at 1000-2000 noise floors by a strong payload
@@ -229,9 +246,20 @@ class Resonance(Effect):
         if spectrum is None:
             return None
         freqs, smooth, band = spectrum
-        i = band[np.argmax(smooth[band])]
         floor = np.median(smooth[band])
-        if not floor > 0.0 or smooth[i] < DEFLECTION_PROMINENCE * floor:
+        inner = band[(band > band[0]) & (band < band[-1])]
+        inner = inner[(smooth[inner] >= smooth[inner - 1]) & (smooth[inner] >= smooth[inner + 1])]
+        if lines is not None:
+            # A line of order k (k times the repetition rate, folded) moves k
+            # times as fast with the rate, and the rebuilt rate is the gyro's
+            # mean: the rebuilt line may sit a few Hz off the measured one.
+            reach = 2 * round(LINE_REACH_HZ / (freqs[1] - freqs[0])) + 1
+            quantization = maximum_filter1d(cls._spectrum(np.asarray(lines, float), dt)[1], reach)
+            inner = inner[quantization[inner] < QUANTIZATION_SHARE * smooth[inner]]
+        if inner.size == 0 or not floor > 0.0:
+            return None
+        i = inner[np.argmax(smooth[inner])]
+        if smooth[i] < DEFLECTION_PROMINENCE * floor:
             return None
         return float(freqs[i])
 
