@@ -71,7 +71,7 @@ def test_a_ringing_mode_is_found_beside_the_line(seed):
 @pytest.mark.parametrize("seed", range(8))
 def test_a_held_rate_with_gyro_noise_names_no_mode(seed):
     # High orders of the line move fast with the rate: the rebuild reads
-    # the rate's mean over `TONE_WINDOW` samples.
+    # the rate's mean over `LINE_WINDOW` samples.
     rate = _plateaus(8000, 8.43 * DEG)
     noise = np.random.default_rng(seed).normal(0.0, 0.05 * DEG, rate.size)
     assert _peak([_run(rate, noise)]) is None

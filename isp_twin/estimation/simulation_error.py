@@ -137,13 +137,13 @@ class RunStack:
         pattern that repeats each quantum the axis turns: where the axis
         holds its rate (a saturated command's plateau), a line at that
         repetition rate (`Resonance.deflection_peak`). Here the rate reading
-        averaged over `TONE_WINDOW` samples is integrated, quantized by
+        averaged over `LINE_WINDOW` samples is integrated, quantized by
         `angle_step` and differenced again: the same lines, at the same
         rates (0 where the angle is not quantized).
         """
         if self.deflection_rate is None or self.angle_step is None:
             return None
-        kernel = np.ones(TONE_WINDOW) / TONE_WINDOW
+        kernel = np.ones(LINE_WINDOW) / LINE_WINDOW
         lines = np.zeros_like(self.omega)
         for i, (w, step) in enumerate(zip(self.omega, self.angle_step)):
             if step > 0.0:
@@ -156,11 +156,11 @@ class RunStack:
 #: Samples the rate reading is averaged over in `RunStack.deflection` [1]:
 #: its error moves the rebuilt line of order k by k times the error over the
 #: angle's quantum. With 21 samples (a 14-bit resolver, 0.05 deg/s of gyro
-#: noise: 0.5 Hz a order) a line of high order from a rate held for 6 s
+#: noise: 0.5 Hz per order) a line of high order from a rate held for 6 s
 #: escaped the rebuild in 1 of 8 noise draws (tests/test_deflection_lines.py);
 #: with 51, in none. A rate that changes makes no line, so the longer mean
 #: costs nothing.
-TONE_WINDOW = 51
+LINE_WINDOW = 51
 
 #: Rate beyond which a simulated variant has diverged [rad/s]; its reading is
 #: held there, so it loses by a large, finite error.
