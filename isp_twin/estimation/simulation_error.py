@@ -139,7 +139,8 @@ class RunStack:
         repetition rate (`Resonance.deflection_peak`). Here the rate reading
         averaged over `LINE_WINDOW` samples is integrated, quantized by
         `angle_step` and differenced again: the same lines, at the same
-        rates (0 where the angle is not quantized).
+        rates. An angle that is not quantized changes by tiny steps, and its
+        rebuild is as small; one that never changes has none (0).
         """
         if self.deflection_rate is None or self.angle_step is None:
             return None
