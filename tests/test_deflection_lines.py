@@ -96,8 +96,9 @@ def _reference_runs(effect: str, seed: int):
 
 
 def test_a_saturated_plateau_names_no_mode():
-    """Reference saturation seed 4: its plateau at 8.4 deg/s put a line at
-    383 Hz that stood 9.7 times above the band (docs/diagnosis.md, "Stop 32")."""
+    """Reference saturation seed 4: its plateau at 13.5 deg/s put a line at
+    383 Hz (615 quanta a second, aliased) that stood 9.7 times above the band
+    (docs/diagnosis.md, "Stop 32")."""
     _, runs = _reference_runs("saturation", 4)
     assert _peak(runs) is None
     assert payload_hint(runs) == ""
