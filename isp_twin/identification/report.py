@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 from isp_twin.estimation.simulation_error import stack_runs
@@ -87,9 +88,12 @@ def identification_verdict(
     rmse_all = dict(result.rmse_train)
     rmse_all.update({k: v * DEG for k, v in rmse_table(result, validation).items()})
     floors = {d.name: noise_floor_of([d.omega]) for d in list(train) + list(validation)}
-    held = any(e.name == "resonance" for e in result.effects)
-    advice = ADVICE if held else payload_hint(train) + ADVICE
-    return fit_verdict(rmse_all, floors, [d.name for d in validation], advice)
+    verdict = fit_verdict(rmse_all, floors, [d.name for d in validation], ADVICE)
+    if verdict.converged or any(e.name == "resonance" for e in result.effects):
+        return verdict
+    # Only a fit that has not converged gets advice: the runs are stacked
+    # for the hint only then (a long log costs a stack of its length).
+    return replace(verdict, advice=payload_hint(train) + ADVICE)
 
 
 def payload_hint(runs: Sequence[MeasuredData]) -> str:
