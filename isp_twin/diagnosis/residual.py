@@ -6,12 +6,13 @@ does it depend on angle, rate, direction, acceleration and time, what is its
 spectrum, and what is the noise floor.
 
 Noise floor (`noise_floor`): the standard deviation of the measurement noise,
-estimated from the residual's second differences. For white noise of standard
-deviation s, ``r[k+1] - 2 r[k] + r[k-1]`` has variance ``6 s^2``; the model
-errors the library is about are smooth at the sample rate (the axis pole
-filters them) and add little to the second difference, except at a few
-breakaways and steps, which the median absolute deviation ignores. So
-``noise = 1.4826 * MAD(second difference) / sqrt(6)``. It is the RMS error a
+estimated from the residual's fourth differences
+(`isp_twin.estimation.verdict.FLOOR_DIFFERENCE`). For white noise of standard
+deviation s the fourth difference has variance ``70 s^2``; the model errors
+the library is about, and a payload's ringing well below the Nyquist
+frequency, are smooth at the sample rate and add little to it, except at a
+few breakaways and steps, which the median absolute deviation ignores. So
+``noise = 1.4826 * MAD(fourth difference) / sqrt(70)``. It is the RMS error a
 perfect model would leave.
 """
 
@@ -34,7 +35,7 @@ __all__ = [
 ]
 
 NOISE_METHOD = (
-    "1.4826*MAD of the residual's second difference / sqrt(6), pooled over runs "
+    "1.4826*MAD of the residual's fourth difference / sqrt(70), pooled over runs "
     "(white-noise standard deviation; smooth model errors and the few steps do not count)"
 )
 
