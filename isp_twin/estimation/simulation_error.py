@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from isp_twin.errors import DataError
-from isp_twin.estimation.verdict import noise_floor_of
+from isp_twin.estimation.verdict import SCALE_DIFFERENCE, noise_floor_of
 from isp_twin.model.effects import effect_class
 from isp_twin.model.effects.base import true_rates
 from isp_twin.model.effects.batched import make_batched
@@ -218,7 +218,11 @@ def stack_runs(
         # motion in the direction of the noise.
         level = rest
         if level is None:
-            level = 3.0 * noise_floor_of([np.asarray(r.omega[:2000], float)]) if m > 8 else -1.0
+            level = (
+                3.0 * noise_floor_of([np.asarray(r.omega[:2000], float)], SCALE_DIFFERENCE)
+                if m > 8
+                else -1.0
+            )
         first[i], levels[i] = r.omega[0], level
         if abs(r.omega[0]) <= level:
             omega[i, 0] = 0.0

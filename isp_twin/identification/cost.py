@@ -11,7 +11,7 @@ import numpy as np
 
 from isp_twin.estimation.simulation_error import RunStack, predict_one, stack_runs
 from isp_twin.estimation.simulation_error import residuals as simulation_residuals
-from isp_twin.estimation.verdict import noise_floor_of
+from isp_twin.estimation.verdict import SCALE_DIFFERENCE, noise_floor_of
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.identification.side_angle import with_side_angle
@@ -112,5 +112,7 @@ def rmse(
 
 
 def rate_noise(data: Sequence[MeasuredData]) -> float:
-    """White rate-noise standard deviation of the measured runs [rad/s] (`noise_floor_of`)."""
-    return noise_floor_of([d.omega for d in data])
+    """White rate-noise scale of the measured runs [rad/s] for the fit's thresholds
+    and weights (`noise_floor_of` at `SCALE_DIFFERENCE`; the verdict's floor is at
+    `FLOOR_DIFFERENCE`)."""
+    return noise_floor_of([d.omega for d in data], SCALE_DIFFERENCE)

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from isp_twin.errors import ParameterError
-from isp_twin.estimation.verdict import noise_floor_of
+from isp_twin.estimation.verdict import SCALE_DIFFERENCE, noise_floor_of
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.parameters import RateParams
 
@@ -148,7 +148,7 @@ def _covariance(x: np.ndarray, resid: np.ndarray, runs: list[MeasuredData], a: f
         n = len(d)
         xr, rr = x[start : start + n], resid[start : start + n]
         start += n
-        sigma = noise_floor_of([np.asarray(d.omega, float)])
+        sigma = noise_floor_of([np.asarray(d.omega, float)], SCALE_DIFFERENCE)
         walk = (a * sigma * d.dt) ** 2
         white = max((np.mean(np.diff(rr) ** 2) - walk) / 2.0, 0.0)
         # The walk starts at sample 1 (sample 0 is the run's own intercept).

@@ -117,6 +117,12 @@ def payload_hint(runs: Sequence[MeasuredData]) -> str:
     )
 
 
+def _training_floor(result: IdentificationResult, train: Sequence[MeasuredData]) -> float:
+    """The training runs' pooled noise floor [rad/s], by the verdict's estimator
+    (`noise_floor_of`); without the runs, the fit's own noise scale."""
+    return noise_floor_of([d.omega for d in train]) if train else result.noise
+
+
 def result_json(
     result: IdentificationResult,
     axis: str,
@@ -172,7 +178,7 @@ def result_json(
         "rmse_train": {k: v / DEG for k, v in result.rmse_train.items()},
         "rmse_validation": rmse_validation,
         "cost_deg_s": result.cost / DEG,
-        "noise_floor_deg_s": num(result.noise / DEG),
+        "noise_floor_deg_s": num(_training_floor(result, train) / DEG),
         "status": result.status,
         "outcome": result.outcome.value,
         "search_log": [step.to_json() for step in result.log],

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 
 from isp_twin.errors import ParameterError
-from isp_twin.estimation.verdict import noise_floor_of
+from isp_twin.estimation.verdict import SCALE_DIFFERENCE, noise_floor_of
 from isp_twin.identification.gyro_error import reading_error
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.friction import regime_index
@@ -70,7 +70,7 @@ def fused_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
 def fusion_noise(data: MeasuredData, window: int = FUSION_WINDOW) -> float:
     """Standard deviation of the fused angle's own noise [rad]: the integrated
     gyro noise less its moving average, ``sigma dt sqrt(window / 12)``."""
-    sigma = noise_floor_of([data.omega])
+    sigma = noise_floor_of([data.omega], SCALE_DIFFERENCE)
     return float(sigma * data.dt * np.sqrt(max(1, min(window, len(data.omega))) / 12.0))
 
 
