@@ -37,11 +37,11 @@ CONVERGED_RATIO = 1.5
 #: C(2k, k) s^2 (6 for k = 2, 70 for k = 4); a component of frequency f is
 #: scaled by (2 sin(pi f T))^k. At k = 2 a payload's ringing reached the
 #: median: on reference resonance seeds 30-39 the floor of the held-out run
-#: read up to 13x the truth's sigma (1.0-2.3x at k = 3, 0.95-1.07x at k = 4);
+#: read up to 13x the truth's sigma (0.94-2.35x at k = 3, 0.95-1.07x at k = 4);
 #: on clean seeds 0-19 k = 2 read up to 1.59x, k = 4 up to 1.18x
 #: (docs/identification.md "Noise floor"). A gyro whose own filter colours its
 #: noise reads lower at a higher k: the floor then errs towards "not
-#: converged", never towards hiding an error.
+#: converged".
 FLOOR_DIFFERENCE = 4
 #: The order of the noise scale inside the fits: identify's rest levels,
 #: regime-prior weights and converged target (`cost.rate_noise`), the stacked
@@ -58,9 +58,10 @@ def noise_floor_of(rates: Sequence[np.ndarray], order: int = FLOOR_DIFFERENCE) -
 
     ``1.4826*MAD(k-th difference)/sqrt(C(2k, k))`` at k = `order`
     (`FLOOR_DIFFERENCE`: the verdicts' floor; `SCALE_DIFFERENCE`: the fits'
-    noise scale), pooled over the runs: a rate filtered by the axis's own dynamics, and a
-    payload's ringing well below the Nyquist frequency, contribute little to
-    the k-th difference except at the few breakaways, which the median ignores.
+    noise scale), pooled over the runs: a rate filtered by the axis's own
+    dynamics, and a payload's ringing well below the Nyquist frequency,
+    contribute little to the k-th difference except at the few breakaways,
+    which the median ignores.
     """
     k = order
     diffs = [np.diff(np.asarray(r, float), k) for r in rates if len(r) > k + 1]
