@@ -218,11 +218,7 @@ def stack_runs(
         # motion in the direction of the noise.
         level = rest
         if level is None:
-            level = (
-                3.0 * noise_floor_of([np.asarray(r.omega[:2000], float)], SCALE_DIFFERENCE)
-                if m > 8
-                else -1.0
-            )
+            level = 3.0 * noise_floor_of([r.omega[:2000]], SCALE_DIFFERENCE) if m > 8 else -1.0
         first[i], levels[i] = r.omega[0], level
         if abs(r.omega[0]) <= level:
             omega[i, 0] = 0.0
