@@ -352,8 +352,7 @@ def _per_sample_loop(params, u, angle, effects, integration, omega0):
         at = 0.5 * (angle[:, k - 1] + angle[:, k]) if integration.midstep_angle else angle[:, k - 1]
         extra[:, k - 1] = sum(e.acceleration(at, w) for e in effects) * DT
         _advance_rows(table, u_eff, extra, angle, True, -1, k, k + 1, m, DT,
-                      integration.midpoint_friction, integration.split_reversals,
-                      integration.rest_drive_gain, w, y, point, reading, ang, regime, 0,
+                      *integration.kernel_flags(), w, y, point, reading, ang, regime, 0,
                       n_rows, None, None, lead)  # fmt: skip
     return point, ang, regime
 

@@ -70,16 +70,24 @@ def add_data_options(p: argparse.ArgumentParser) -> None:
         "held over the sample; default: diagnose: the parameter file's fitted_with block, "
         f"identify and files without the block: {DEFAULT_INTEGRATION.substeps})",
     )
+    p.add_argument(
+        "--split-sides",
+        action="store_true",
+        help="a sub-step in which the angle crosses 0 takes each side's regime for its part "
+        'of it (docs/diagnosis.md "Stop 34"; diagnose: the parameter file\'s fitted_with '
+        "block says whether its parameters were fitted so)",
+    )
 
 
 def integration_from_args(args: argparse.Namespace) -> Integration:
-    """The model integration ``--substeps`` asks for (1: Eq. 6 exactly; not given: the default)."""
+    """The model integration ``--substeps`` and ``--split-sides`` ask for (1: Eq. 6
+    exactly, its regime switched at the crossing with ``--split-sides``; not
+    given: the default)."""
     m = DEFAULT_INTEGRATION.substeps if args.substeps is None else args.substeps
     if m < 1 or m > MAX_SUBSTEPS:
         raise ParameterError(f"--substeps must be between 1 and {MAX_SUBSTEPS}, got {m}")
-    if m == 1:
-        return EQ6
-    return replace(DEFAULT_INTEGRATION, substeps=m)
+    integration = EQ6 if m == 1 else replace(DEFAULT_INTEGRATION, substeps=m)
+    return replace(integration, split_sides=True) if args.split_sides else integration
 
 
 def model_from_file(
@@ -96,16 +104,23 @@ def model_from_file(
     record = axis.fitted_with
     if record is None:
         return integration_from_args(args), None, None
-    if args.substeps is None or args.substeps == record.substeps:
+    same_steps = args.substeps is None or args.substeps == record.substeps
+    if same_steps and (record.split_sides or not args.split_sides):
         integration, timing = recorded_model(record)
         return integration, timing, None
-    integration = integration_from_args(args)
+    if same_steps:  # --split-sides on a file fitted without it
+        integration = replace(recorded_model(record)[0], split_sides=True)
+        what = f"--split-sides overrides {where}.fitted_with.split_sides false"
+    else:
+        integration = integration_from_args(args)
+        what = (
+            f"--substeps {args.substeps} overrides {where}.fitted_with.substeps {record.substeps}"
+        )
     return (
         integration,
         None,
-        f"--substeps {args.substeps} overrides {where}.fitted_with.substeps {record.substeps}: "
-        "the parameters were fitted with another model; the read-out timing is chosen again "
-        "from the data",
+        f"{what}: the parameters were fitted with another model; the read-out timing is chosen "
+        "again from the data",
     )
 
 

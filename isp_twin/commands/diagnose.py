@@ -157,11 +157,11 @@ def execute(args: argparse.Namespace) -> int:
 def _model_source(args: argparse.Namespace, axis_in: AxisParams, override: str | None) -> dict:
     """Where the fitted model (sub-steps, read-out) came from, for the JSON."""
     if override is not None:
-        source = "--substeps (overrides the parameter file's fitted_with)"
+        source = "--substeps / --split-sides (overrides the parameter file's fitted_with)"
     elif axis_in.fitted_with is not None:
         source = "parameter file (fitted_with)"
-    elif args.substeps is not None:
-        source = "--substeps (the parameter file has no fitted_with block)"
+    elif args.substeps is not None or args.split_sides:
+        source = "--substeps / --split-sides (the parameter file has no fitted_with block)"
     else:
         source = "defaults (the parameter file has no fitted_with block)"
     out = {"model_source": source}

@@ -58,6 +58,7 @@ def fitted_with(integration: Integration, timing: Timing) -> FittedWith:
         side_shift_steps=float(timing.side_shift),
         midstep_angle=bool(integration.midstep_angle),
         rest_drive_gain=bool(integration.rest_drive_gain),
+        split_sides=bool(integration.split_sides),
     )
 
 
@@ -70,6 +71,7 @@ def recorded_model(record: FittedWith) -> tuple[Integration, Timing]:
         record.exact_effect_hold,
         record.midstep_angle,
         record.rest_drive_gain,
+        record.split_sides,
     )
     return integration, Timing(record.side_shift_steps, record.gyro_average)
 

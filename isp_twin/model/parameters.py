@@ -117,6 +117,8 @@ class FittedWith:
         rest_drive_gain: at rest the motor gain of the regime the total
             drive breaks towards, not of the command's sign (optional as
             ``midstep_angle``: absent means false).
+        split_sides: a sub-step whose angle crosses 0 takes each side's
+            regime for its part of it (optional as ``midstep_angle``).
         gyro_average: the gyro reads the rate averaged over the sample (else
             the rate at the sample instant).
         side_shift_steps: the half-plane is read from the angle at step start
@@ -131,6 +133,7 @@ class FittedWith:
     side_shift_steps: float
     midstep_angle: bool = False
     rest_drive_gain: bool = False
+    split_sides: bool = False
 
 
 #: Keys of a ``fitted_with:`` block, in `FittedWith` order.
@@ -143,11 +146,12 @@ FITTED_WITH_KEYS: tuple[str, ...] = (
     "side_shift_steps",
     "midstep_angle",
     "rest_drive_gain",
+    "split_sides",
 )
 #: Keys a ``fitted_with:`` block may leave out: options added after files
 #: were written without them; absent means false, the rule those files were
 #: fitted with.
-FITTED_WITH_OPTIONAL: tuple[str, ...] = ("midstep_angle", "rest_drive_gain")
+FITTED_WITH_OPTIONAL: tuple[str, ...] = ("midstep_angle", "rest_drive_gain", "split_sides")
 #: Largest sub-step count a file or ``--substeps`` may ask for.
 MAX_SUBSTEPS = 100
 

@@ -43,7 +43,8 @@ reading is the rate at the sample instant, or its mean over the sample's
 sub-steps (trapezoid; with m = 1 the mean of both ends, `gyro_reading`).
 The half-plane of sub-step j of the step into sample k is read from the given
 angle at ``k - 1 + j/m`` (linear interpolation), or from the model's own
-angle ``y += (T/m) w``.
+angle ``y += (T/m) w``; with ``split_sides`` a sub-step whose angle crosses 0
+by its end takes each side's regime for its part of it.
 
 `EQ6` (m = 1, every option off) is Eq. 6 exactly as
 `isp_twin.model.axis_model.simulate` computes it, up to the last bit of ``exp``
@@ -83,6 +84,11 @@ from isp_twin.vocabulary import check_side
 __all__ = ["Integration", "EQ6", "DEFAULT_INTEGRATION", "simulate_substeps"]
 
 
+#: Bits of the kernel's ``split`` mask (`Integration.kernel_flags`).
+SPLIT_REVERSALS = 1
+SPLIT_SIDES = 2
+
+
 @dataclass(frozen=True)
 class Integration:
     """How the model integrates one sample (see module doc).
@@ -113,6 +119,19 @@ class Integration:
             torque e opposes the command (reference cable_spring seed 3
             with its true parameters: 3.91 -> 1.13 noise floors on train2;
             docs/diagnosis.md "Stop 21").
+        split_sides: a sub-step in which the angle choosing the half-plane
+            crosses 0 takes the regime of each side for its part of the
+            sub-step (pole, drive and friction weighted by time), instead
+            of the start's regime for all of it: read at the start, the
+            switch lags by half a sub-step on average, and a jump of the
+            motor gain between the sides then drives the wrong impulse at
+            every crossing (reference resonance seed 79 with its true
+            parameters: 1.38 -> 1.01 noise sigmas on train1, its payload
+            rung by the jump; docs/diagnosis.md "Stop 34"). Opt-in
+            (``--split-sides``) until the fits are benchmarked with it: on
+            dev seed deadzone 1000 it moves the held-out error of the
+            right fit from 1.42 to 1.53 noise floors, and diagnose then
+            answers ``none`` (the effect tentative).
     """
 
     substeps: int = 10
@@ -121,14 +140,17 @@ class Integration:
     exact_effect_hold: bool = True
     midstep_angle: bool = True
     rest_drive_gain: bool = True
+    split_sides: bool = False
 
     def __post_init__(self):
         if int(self.substeps) != self.substeps or self.substeps < 1:
             raise ParameterError(f"substeps must be an integer >= 1, got {self.substeps}")
 
-    def kernel_flags(self) -> tuple[bool, bool, bool]:
-        """The sub-step kernel's switches, in its argument order (`_advance`)."""
-        return self.midpoint_friction, self.split_reversals, self.rest_drive_gain
+    def kernel_flags(self) -> tuple[bool, int, bool]:
+        """The sub-step kernel's switches, in its argument order (`_advance`):
+        the splits as a mask of `SPLIT_REVERSALS` and `SPLIT_SIDES`."""
+        split = SPLIT_REVERSALS * bool(self.split_reversals) + SPLIT_SIDES * bool(self.split_sides)
+        return self.midpoint_friction, split, self.rest_drive_gain
 
     def to_json(self) -> dict:
         """The ``integration`` block of identify's and diagnose's JSON records."""
@@ -139,6 +161,7 @@ class Integration:
             "exact_effect_hold": self.exact_effect_hold,
             "midstep_angle": self.midstep_angle,
             "rest_drive_gain": self.rest_drive_gain,
+            "split_sides": self.split_sides,
         }
 
     def describe(self) -> str:
@@ -152,6 +175,7 @@ class Integration:
                 ("exact hold of effects", self.exact_effect_hold),
                 ("angle torques at mid-step", self.midstep_angle),
                 ("rest gain of the drive", self.rest_drive_gain),
+                ("side changes split", self.split_sides),
             )
             if on
         ]
@@ -161,7 +185,7 @@ class Integration:
 
 
 #: Eq. 6 as the paper writes it.
-EQ6 = Integration(1, False, False, False, False, False)
+EQ6 = Integration(1, False, False, False, False, False, False)
 #: The model identification and diagnosis fit by default (docs/identification.md).
 DEFAULT_INTEGRATION = Integration()
 
@@ -189,6 +213,33 @@ SIDE_FOLLOWS_GYRO = 2
 
 #: Defaults of the columns no effect gives (no bristle force).
 _COLUMN_DEFAULTS = {"bristle_drive": 0.0, "presliding_rad": 1.0}
+
+
+@njit(cache=True, nogil=True)
+def _part_before(a, a_end):  # pragma: no cover - compiled
+    """The part of a sub-step before its angle, going from `a` to `a_end`
+    (linear in time), crosses 0."""
+    if a == a_end:
+        return 1.0
+    return min(max(a / (a - a_end), 0.0), 1.0)
+
+
+@njit(cache=True, nogil=True)
+def _sliding_in(table, i, ix, w):  # pragma: no cover - compiled
+    """Eq. 5's sliding friction of regime `ix` at rate `w` [rate per sub-step]."""
+    return law.sliding(w, table[i, ix, 2], table[i, ix, 3], table[i, ix, 4])
+
+
+@njit(cache=True, nogil=True)
+def _across_sides(table, i, ix2, q, w, uk, ek, p, drive, slide):  # pragma: no cover - compiled
+    """(pole, drive, sliding friction) of a sub-step whose angle changes side
+    after its part `q`: the start regime's (`p`, `drive`, `slide`) over q, the
+    regime `ix2` of the other side over the rest, weighted by time (to first
+    order in the sub-step, as the reference ends its step at the crossing)."""
+    r = 1.0 - q
+    p2 = table[i, ix2, 0]
+    drive2 = table[i, ix2, 1] * uk + table[i, ix2, 5] * ek
+    return q * p + r * p2, q * drive + r * drive2, q * slide + r * _sliding_in(table, i, ix2, w)
 
 
 @njit(cache=True, nogil=True)
@@ -399,6 +450,9 @@ def _advance_group(
     """
     nb = r_hi - r_lo
     h = dt / m
+    step_part = 1.0 / m
+    reversals = (split & SPLIT_REVERSALS) != 0
+    sides = (split & SPLIT_SIDES) != 0
     w = scratch[0]  # rate, angle and reading sum of each row
     y = scratch[1]
     acc = scratch[2]
@@ -450,6 +504,7 @@ def _advance_group(
                 # also depends on the direction (`law.side_of`).
                 if use_side:
                     a = y0[b] if j == 0 else y0[b] + fj * dy[b]
+                    a_end = y0[b] + (fj + step_part) * dy[b]
                     if payload and use_side == SIDE_FOLLOWS_GYRO:
                         # The fused angle follows the gyro's integral, the
                         # payload's angle, within the fusion's window; the
@@ -460,10 +515,13 @@ def _advance_group(
                         deflection = (sfx[i, 2] + sfx[i, 15]) * yp[b]
                         a -= deflection
                         kn = known[i, k - 1] if resolver else 0
+                        a_end -= deflection
                         if kn != 0 and kn * a <= 0.0 and deflection != 0.0:
                             a = kn * max(abs(a), 1e-12)
+                            a_end = a  # the resolver's side holds over the sub-step
                 else:
                     a = y[b]
+                    a_end = y[b] + h * wb
                 if wb != 0.0:
                     ix = _regime_at(a, wb, fixed_side)
                     p = table[i, ix, 0]
@@ -472,6 +530,14 @@ def _advance_group(
                     tc = table[i, ix, 3]
                     al = table[i, ix, 4]
                     slide = law.sliding(wb, ts, tc, al)
+                    # The angle changes side inside the sub-step: the part
+                    # before the crossing in this regime, the rest in the
+                    # other side's (`Integration.split_sides`).
+                    ix2 = _regime_at(a_end, wb, fixed_side) if sides else ix
+                    q = 1.0 if ix2 == ix else _part_before(a, a_end)
+                    if q < 1.0:
+                        p, drive, slide = _across_sides(table, i, ix2, q, wb, uk[b], ek[b],
+                                                        p, drive, slide)  # fmt: skip
                     if bristles:
                         # LuGre's sigma0 z, held over the sub-step like friction.
                         unit = table[i, ix, 5] * sfx[i, 0] / sfx[i, 1]
@@ -482,6 +548,8 @@ def _advance_group(
                     if mid and w_new * wb > 0.0:
                         wm = 0.5 * (wb + w_new)
                         slide = law.sliding(wm, ts, tc, al)
+                        if q < 1.0:
+                            slide = q * slide + (1.0 - q) * _sliding_in(table, i, ix2, wm)
                         if bristles:  # z at mid-travel, as the friction at the mean rate
                             slide += unit * _bristles(z[b], wb, 0.25 * h * (wb + w_new), sfx[i, 1])
                         w_new = p * wb + drive - slide
@@ -501,12 +569,12 @@ def _advance_group(
                         # without one (r = 0: a gyro-only mode, or the null
                         # rows of other candidates in one batch) as on a rigid axis.
                         two_mass = payload and sfx[i, 2] != 0.0
-                        if split and w_new != 0.0 and not two_mass:
+                        if reversals and w_new != 0.0 and not two_mass:
                             rest_part = 1.0 - wb / (wb - w_new)
                         if bristles:  # travel to the stop: the rate falls linearly
                             part = wb / (wb - w_new) if w_new != 0.0 else 1.0
                             z[b] = _bristles(z[b], wb, 0.5 * h * part * wb, sfx[i, 1])
-                        if split and w_new != 0.0 and two_mass and sfx[i, 0] == 0.0:
+                        if reversals and w_new != 0.0 and two_mass and sfx[i, 0] == 0.0:
                             w_new, yn, ydn = _payload_stop(table, i, a, uk[b], ek[b], fixed_side,
                                 by_drive, sfx[i], wb, w_new, ydp[b], ydn, yp[b], h, dt)  # fmt: skip
                         else:
