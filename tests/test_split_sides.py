@@ -130,6 +130,12 @@ def test_the_option_is_asked_for_and_the_parameter_file_records_it(tmp_path):
     integration, timing, override = model_from_file(_args("--split-sides"), axis, "p.yaml")
     assert integration.split_sides and integration.substeps == record.substeps
     assert timing is None and override.startswith("--split-sides overrides p.yaml")
+    # Another sub-step count refits with it; a split the file was fitted
+    # with stays (not asked again on the command line).
+    split_file = replace(axis, fitted_with=fitted_with(Integration(split_sides=True), Timing()))
+    integration, _, override = model_from_file(_args("--substeps", "4"), split_file, "p.yaml")
+    assert integration.substeps == 4 and integration.split_sides
+    assert override.startswith("--substeps 4 overrides p.yaml")
     text = path.read_text().replace("      split_sides: false\n", "")
     assert "split_sides" not in text.split("inner_el")[0]
     path.write_text(text)

@@ -111,8 +111,11 @@ def model_from_file(
     if same_steps:  # --split-sides on a file fitted without it
         integration = replace(recorded_model(record)[0], split_sides=True)
         what = f"--split-sides overrides {where}.fitted_with.split_sides false"
-    else:
+    else:  # another sub-step count; a split the file was fitted with stays
         integration = integration_from_args(args)
+        integration = replace(
+            integration, split_sides=integration.split_sides or record.split_sides
+        )
         what = (
             f"--substeps {args.substeps} overrides {where}.fitted_with.substeps {record.substeps}"
         )
