@@ -215,7 +215,12 @@ def _load_runs(args: argparse.Namespace, params):
 
 def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
     """Each round's candidates and verdicts, the accepted fits, the errors, the verdict."""
-    say(f"diagnosis of {axis} on {n_train} run(s); held out: {', '.join(diag.holdout_names)}")
+    side = diag.side_angle
+    half_plane = f"from the {side} angle" if side in ("fused", "resolver") else f"fixed: {side}"
+    say(
+        f"diagnosis of {axis} on {n_train} run(s); held out: {', '.join(diag.holdout_names)}; "
+        f"half-plane {half_plane}"
+    )
     for i, r in enumerate(diag.rounds, 1):
         say(
             f"round {i}: {'no missing effect found' if r.selected == 'none' else 'selected ' + r.selected}"

@@ -86,6 +86,9 @@ class Diagnosis:
         equivalent: effects the data cannot tell apart from the first
             accepted one (`ALIKE`, significant too, held-out MSE within the
             selection's tie margin): the answer is ambiguous between them.
+        side_angle: the angle whose sign chose each sample's half-plane:
+            ``fused`` (the measured angle fused with the integrated gyro),
+            ``resolver`` (the angle as read), or a fixed ``right``/``left``.
     """
 
     axis: str
@@ -106,6 +109,7 @@ class Diagnosis:
     integration: Integration = DEFAULT_INTEGRATION
     equivalent: tuple[str, ...] = ()
     implied_torque_offset: ImpliedOffset | None = None
+    side_angle: str = "fused"
 
     @property
     def accepted(self) -> tuple[CandidateFit, ...]:
@@ -176,6 +180,7 @@ class Diagnosis:
                 "side_shift_steps": self.timing.side_shift,
             },
             "integration": self.integration.to_json(),
+            "side_angle": self.side_angle,
             "units": {
                 "rmse_before": "rad/s",
                 "rmse_baseline_refit": "rad/s",

@@ -87,6 +87,7 @@ from isp_twin.diagnosis.rounds import (
     ALIKE,
     COMMAND_EFFECTS,
     OFFSET,
+    PAYLOAD,
     TORQUE_GLOBAL,
     WITH_CONSTANT_PART,
     diagnosis_round,
@@ -97,7 +98,7 @@ from isp_twin.diagnosis.rounds import (
 from isp_twin.diagnosis.selection import judge
 from isp_twin.estimation.information import bic
 from isp_twin.estimation.parameter_file import fitted_axis
-from isp_twin.estimation.simulation_error import predict_one, stack_runs
+from isp_twin.estimation.simulation_error import predict_one, residuals, stack_runs
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.fit import IdentificationResult
 from isp_twin.identification.read_out import Timing, fitted_with
@@ -163,29 +164,71 @@ def diagnose(
         ParameterError: unknown axis, candidate or side source.
     """
     checked = checked_inputs(runs, holdout, params, axis, candidates, side_source)
-    data, x_start, remaining = _prepared(
-        checked,
-        side_source,
-        seed,
-        integration,
-        timing,
-        base_search,
-        max_iter,
-        cv_iter,
-    )
+    options = (side_source, seed, integration, timing, base_search, max_iter, cv_iter)
+    data, x_start, remaining = _prepared(checked, *options)
     x_file = data.ax.rate_params().to_vector()
     before_held = given_held(data, x_file)
     rounds = _rounds(data, x_start, remaining, max_rounds, joint, reopen, base_search)
     diag = _final_diagnosis(data, params, axis, rounds, before_held)
     again = _tentative_read_out(diag, data) if joint else None
-    if again is None:
+    if again is not None:
+        # A tentative effect judged again at its own read-out, beside its
+        # rivals (kept if one is adopted there).
+        data2 = _prepared(
+            checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
+        )[0]
+        diag = _at_read_out(diag, data, data2, again, params, before_held)
+    raw = _resolver_side(diag, data, checked[1]) if joint else None
+    if raw is None:
         return diag
-    # A tentative effect judged again at its own read-out, beside its rivals
-    # (kept if one is adopted there).
-    data2 = _prepared(
-        checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
-    )[0]
-    return _at_read_out(diag, data, data2, again, params, before_held)
+    return _at_resolver_side(diag, data, raw, params, before_held)
+
+
+def _resolver_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData | None:
+    """The runs stacked with the resolver's angle as the side (side source
+    ``raw``), where the payload resonance is tentative on the fused angle
+    and its first-round fit costs less on the training runs read that way;
+    else None.
+
+    `side_choice` picks the fused or the raw angle with the starting model,
+    which on a payload axis is rigid and far off either way. With the mode
+    fitted the choice can turn: the fused angle follows the gyro on the
+    payload, and with a fine resolver the raw angle is closer to the
+    motor's (docs/diagnosis.md "Stop 35")."""
+    if PAYLOAD not in diag.tentative or data.side_source != "measured":
+        return None
+    if data.runs.train[0].resolver is None:  # the raw angle was chosen already
+        return None
+    fit = diag.rounds[0].fits.get(PAYLOAD)
+    if fit is None:
+        return None
+    raw = stacked(
+        DiagnosisRuns(data.runs.raw, data.runs.raw, list(holdout)),
+        data.ax,
+        "raw",
+        data.timing,
+        data.integration,
+        seed=data.seed,
+        max_iter=data.max_iter,
+        cv_iter=data.cv_iter,
+    )
+    costs = [
+        float(np.sum(residuals(d.train, fit.rate_vector, fixed=fit.effects()) ** 2))
+        for d in (data, raw)
+    ]
+    return raw if costs[1] < costs[0] else None
+
+
+def _at_resolver_side(diag, data, raw, params, before_held) -> Diagnosis:
+    """The payload resonance and its first-round rivals judged again on the
+    resolver's side (`raw`), each with its rate parameters identified there
+    with its effect held; `diag` where no effect is adopted there."""
+    fit = diag.rounds[0].fits[PAYLOAD]
+    again = identify_held(raw, fit.effects(), timing=data.timing, generations=0)
+    starts = _rival_starts(diag, raw, again)
+    rnd = round_at_read_out(raw, starts, tuple(data.ax.effects))
+    diag2 = _final_diagnosis(raw, params, diag.axis, [rnd], before_held)
+    return diag2 if diag2.selected_effect != BASELINE else diag
 
 
 def _at_read_out(diag, data, data2, again, params, before_held) -> Diagnosis:
@@ -403,7 +446,15 @@ def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
         integration=data.integration,
         equivalent=equivalent,
         implied_torque_offset=None if accepted else _implied_offset(first.baseline, data),
+        side_angle=_side_angle(data),
     )
+
+
+def _side_angle(data: DiagnosisData) -> str:
+    """The angle the half-plane was read from (`Diagnosis.side_angle`)."""
+    if data.fixed_side is not None:
+        return data.side_source
+    return "fused" if data.runs.train[0].resolver is not None else "resolver"
 
 
 def _implied_offset(base: CandidateFit, data: DiagnosisData) -> ImpliedOffset:
