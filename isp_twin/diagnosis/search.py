@@ -102,6 +102,7 @@ from isp_twin.estimation.simulation_error import predict_one, residuals, stack_r
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.fit import IdentificationResult
 from isp_twin.identification.read_out import Timing, fitted_with
+from isp_twin.identification.side_angle import with_side_angle
 from isp_twin.model.effects.torque_offset import ImpliedOffset, implied_offset
 from isp_twin.model.parameters import (
     RATE_LAYOUT,
@@ -178,34 +179,41 @@ def diagnose(
             checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
         )[0]
         diag = _at_read_out(diag, data, data2, again, params, before_held)
-    raw = _resolver_side(diag, data, checked[1]) if joint else None
-    if raw is None:
+    other = _other_side(diag, data, checked[1]) if joint else None
+    if other is None:
         return diag
-    return _at_resolver_side(diag, data, raw, params, before_held)
+    return _at_other_side(diag, data, other, params, before_held)
 
 
-def _resolver_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData | None:
-    """The runs stacked with the resolver's angle as the side (side source
-    ``raw``), where the payload resonance is tentative on the fused angle
-    and its first-round fit costs less on the training runs read that way;
-    else None.
+def _other_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData | None:
+    """The runs stacked with the other angle as the side (the resolver's
+    where the fused angle was chosen, and the other way round), where the
+    payload resonance is tentative and its first-round fit costs less on
+    the training runs read that way; else None.
 
     `side_choice` picks the fused or the raw angle with the starting model,
     which on a payload axis is rigid and far off either way. With the mode
     fitted the choice can turn: the fused angle follows the gyro on the
-    payload, and with a fine resolver the raw angle is closer to the
-    motor's (docs/diagnosis.md "Stop 35")."""
+    payload, which the model takes off only in part; a fine resolver is
+    then closer to the motor's angle, a coarse one is not (docs/diagnosis.md
+    "Stop 35")."""
     if PAYLOAD not in diag.tentative or data.side_source != "measured":
-        return None
-    if data.runs.train[0].resolver is None:  # the raw angle was chosen already
         return None
     fit = diag.rounds[0].fits.get(PAYLOAD)
     if fit is None:
         return None
-    raw = stacked(
-        DiagnosisRuns(data.runs.raw, data.runs.raw, list(holdout)),
+    if data.runs.train[0].resolver is not None:  # fused: read the resolver
+        train, held, source = data.runs.raw, list(holdout), "raw"
+    else:
+        shift = data.timing.side_shift / data.integration.substeps
+        train, held = (
+            [with_side_angle(r, "measured", shift) for r in rs] for rs in (data.runs.raw, holdout)
+        )
+        source = "measured"
+    other = stacked(
+        DiagnosisRuns(data.runs.raw, train, held),
         data.ax,
-        "raw",
+        source,
         data.timing,
         data.integration,
         seed=data.seed,
@@ -214,20 +222,21 @@ def _resolver_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisDa
     )
     costs = [
         float(np.sum(residuals(d.train, fit.rate_vector, fixed=fit.effects()) ** 2))
-        for d in (data, raw)
+        for d in (data, other)
     ]
-    return raw if costs[1] < costs[0] else None
+    return other if costs[1] < costs[0] else None
 
 
-def _at_resolver_side(diag, data, raw, params, before_held) -> Diagnosis:
-    """The payload resonance and its first-round rivals judged again on the
-    resolver's side (`raw`), each with its rate parameters identified there
-    with its effect held; `diag` where no effect is adopted there."""
+def _at_other_side(diag, data, other, params, before_held) -> Diagnosis:
+    """The payload resonance and its first-round rivals judged again with
+    the other angle as the side (`other`, `_other_side`), each with its
+    rate parameters identified there with its effect held; `diag` where no
+    effect is adopted there."""
     fit = diag.rounds[0].fits[PAYLOAD]
-    again = identify_held(raw, fit.effects(), timing=data.timing, generations=0)
-    starts = _rival_starts(diag, raw, again)
-    rnd = round_at_read_out(raw, starts, tuple(data.ax.effects))
-    diag2 = _final_diagnosis(raw, params, diag.axis, [rnd], before_held)
+    again = identify_held(other, fit.effects(), timing=data.timing, generations=0)
+    starts = _rival_starts(diag, other, again)
+    rnd = round_at_read_out(other, starts, tuple(data.ax.effects))
+    diag2 = _final_diagnosis(other, params, diag.axis, [rnd], before_held)
     return diag2 if diag2.selected_effect != BASELINE else diag
 
 
