@@ -179,28 +179,45 @@ def diagnose(
             checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
         )[0]
         diag = _at_read_out(diag, data, data2, again, params, before_held)
-    other = _other_side(diag, data, checked[1]) if joint else None
-    if other is None:
+    side = _payload_side(diag, data, checked[1]) if joint else None
+    if side is None:
         return diag
-    return _at_other_side(diag, data, other, params, before_held)
+    return _at_payload_side(diag, data, side, params, before_held)
 
 
-def _other_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData | None:
-    """The runs stacked with the other angle as the side (the resolver's
-    where the fused angle was chosen, and the other way round), where the
-    payload resonance is tentative and its first-round fit costs less on
-    the training runs read that way; else None.
+def _payload_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData | None:
+    """Where the payload resonance is tentative: the runs stacked with the
+    angle (fused or raw) on which its first-round fit costs less on the
+    training runs, these (`data`) or the other (`_other_side`); else None.
 
     `side_choice` picks the fused or the raw angle with the starting model,
     which on a payload axis is rigid and far off either way. With the mode
     fitted the choice can turn: the fused angle follows the gyro on the
     payload, which the model takes off only in part; a fine resolver is
-    then closer to the motor's angle, a coarse one is not (docs/diagnosis.md
-    "Stop 35")."""
-    if PAYLOAD not in diag.tentative or data.side_source != "measured":
+    then closer to the motor's angle, a coarse one is not. On the same side
+    the rate parameters identified with the polished mode held can still
+    go further than the payload stage's, which held the mode where the
+    local refit left it (docs/diagnosis.md "Stop 35")."""
+    if PAYLOAD not in diag.tentative:
         return None
     fit = diag.rounds[0].fits.get(PAYLOAD)
     if fit is None:
+        return None
+    other = _other_side(data, holdout)
+    if other is None:
+        return data
+    costs = [
+        float(np.sum(residuals(d.train, fit.rate_vector, fixed=fit.effects()) ** 2))
+        for d in (data, other)
+    ]
+    return other if costs[1] < costs[0] else data
+
+
+def _other_side(data: DiagnosisData, holdout) -> DiagnosisData | None:
+    """The runs stacked with the other angle as the side: the resolver's
+    where the fused angle was chosen, and the other way round (side source
+    ``measured`` only; else None)."""
+    if data.side_source != "measured":
         return None
     if data.runs.train[0].resolver is not None:  # fused: read the resolver
         train, held, source = data.runs.raw, list(holdout), "raw"
@@ -210,7 +227,7 @@ def _other_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData 
             [with_side_angle(r, "measured", shift) for r in rs] for rs in (data.runs.raw, holdout)
         )
         source = "measured"
-    other = stacked(
+    return stacked(
         DiagnosisRuns(data.runs.raw, train, held),
         data.ax,
         source,
@@ -220,23 +237,18 @@ def _other_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData 
         max_iter=data.max_iter,
         cv_iter=data.cv_iter,
     )
-    costs = [
-        float(np.sum(residuals(d.train, fit.rate_vector, fixed=fit.effects()) ** 2))
-        for d in (data, other)
-    ]
-    return other if costs[1] < costs[0] else None
 
 
-def _at_other_side(diag, data, other, params, before_held) -> Diagnosis:
-    """The payload resonance and its first-round rivals judged again with
-    the other angle as the side (`other`, `_other_side`), each with its
-    rate parameters identified there with its effect held; `diag` where no
-    effect is adopted there."""
+def _at_payload_side(diag, data, side, params, before_held) -> Diagnosis:
+    """The payload resonance and its first-round rivals judged again on the
+    side `side` chose (`_payload_side`), each with its rate parameters
+    identified there with its effect held; `diag` where no effect is
+    adopted there."""
     fit = diag.rounds[0].fits[PAYLOAD]
-    again = identify_held(other, fit.effects(), timing=data.timing, generations=0)
-    starts = _rival_starts(diag, other, again)
-    rnd = round_at_read_out(other, starts, tuple(data.ax.effects))
-    diag2 = _final_diagnosis(other, params, diag.axis, [rnd], before_held)
+    again = identify_held(side, fit.effects(), timing=data.timing, generations=0)
+    starts = _rival_starts(diag, side, again)
+    rnd = round_at_read_out(side, starts, tuple(data.ax.effects))
+    diag2 = _final_diagnosis(side, params, diag.axis, [rnd], before_held)
     return diag2 if diag2.selected_effect != BASELINE else diag
 
 

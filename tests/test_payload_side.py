@@ -1,6 +1,6 @@
-"""A payload resonance tentative on the fused angle is judged again with the
-resolver's angle as the side (`isp_twin.diagnosis.search`, docs/diagnosis.md
-"Stop 35").
+"""A tentative payload resonance is judged again, its rate parameters
+identified with its mode held, on the side (fused or resolver's angle) where
+its fit costs less (`isp_twin.diagnosis.search`, docs/diagnosis.md "Stop 35").
 
 Reference resonance seed 93 (an 18-bit resolver, a 23.75 Hz payload with
 23 % of the inertia): with its true parameters the library reads 3.70 gyro
@@ -28,7 +28,7 @@ import pytest
 
 from isp_twin.diagnosis.candidates import fit_candidate
 from isp_twin.diagnosis.prepared_runs import checked_inputs, given_held
-from isp_twin.diagnosis.search import _at_other_side, _other_side, _prepared
+from isp_twin.diagnosis.search import _at_payload_side, _payload_side, _prepared
 from isp_twin.estimation.parameter_file import fitted_axis
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing, fitted_with
@@ -81,7 +81,7 @@ def test_the_data_are_read_on_the_fused_angle_first(case):
 
 def test_a_tentative_payload_is_judged_again_on_the_resolvers_side(case):
     data, checked, fit, _, _ = case
-    raw = _other_side(_diagnosis(fit, ("resonance",)), data, checked[1])
+    raw = _payload_side(_diagnosis(fit, ("resonance",)), data, checked[1])
     assert raw is not None
     assert raw.side_source == "raw"
     assert all(r.resolver is None for r in [*raw.runs.train, *raw.runs.holdout])
@@ -90,26 +90,28 @@ def test_a_tentative_payload_is_judged_again_on_the_resolvers_side(case):
 
 def test_nothing_else_opens_the_retry(case):
     data, checked, fit, _, _ = case
-    assert _other_side(_diagnosis(fit, ()), data, checked[1]) is None
-    assert _other_side(_diagnosis(fit, ("unbalance",)), data, checked[1]) is None
+    assert _payload_side(_diagnosis(fit, ()), data, checked[1]) is None
+    assert _payload_side(_diagnosis(fit, ("unbalance",)), data, checked[1]) is None
+    # A side the user chose is kept.
     on_raw = replace(data, side_source="raw")
-    assert _other_side(_diagnosis(fit, ("resonance",)), on_raw, checked[1]) is None
+    assert _payload_side(_diagnosis(fit, ("resonance",)), on_raw, checked[1]) is on_raw
 
 
 def test_the_other_way_round_the_cost_keeps_the_resolvers_side(case):
     """Where the resolver's angle was chosen first, the fused one is tried
-    for a tentative payload, and here not taken: the fit costs more there."""
+    for a tentative payload, and here not taken: the fit costs more there;
+    the retry stays on the resolver's side."""
     data, checked, fit, _, _ = case
-    raw = _other_side(_diagnosis(fit, ("resonance",)), data, checked[1])
+    raw = _payload_side(_diagnosis(fit, ("resonance",)), data, checked[1])
     chosen_raw = replace(raw, side_source="measured")
-    assert _other_side(_diagnosis(fit, ("resonance",)), chosen_raw, checked[1]) is None
+    assert _payload_side(_diagnosis(fit, ("resonance",)), chosen_raw, checked[1]) is chosen_raw
 
 
 def test_the_retry_adopts_the_payload_at_the_noise(case):
     data, checked, fit, params, mode = case
-    raw = _other_side(_diagnosis(fit, ("resonance",)), data, checked[1])
+    raw = _payload_side(_diagnosis(fit, ("resonance",)), data, checked[1])
     before = given_held(data, data.ax.rate_params().to_vector())
-    d = _at_other_side(_diagnosis(fit, ("resonance",)), data, raw, params, before)
+    d = _at_payload_side(_diagnosis(fit, ("resonance",)), data, raw, params, before)
     assert d.selected_effect == "resonance"
     assert d.side_angle == "resolver"
     assert d.to_json()["side_angle"] == "resolver"
@@ -126,4 +128,4 @@ def test_the_same_retry_on_the_fused_angle_does_not_adopt_it(case):
     data, _, fit, params, _ = case
     before = given_held(data, data.ax.rate_params().to_vector())
     diag = _diagnosis(fit, ("resonance",))
-    assert _at_other_side(diag, data, data, params, before) is diag
+    assert _at_payload_side(diag, data, data, params, before) is diag
