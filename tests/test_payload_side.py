@@ -111,7 +111,7 @@ def test_the_retry_adopts_the_payload_at_the_noise(case):
     data, checked, fit, params, mode = case
     raw = _payload_side(_diagnosis(fit, ("resonance",)), data, checked[1])
     before = given_held(data, data.ax.rate_params().to_vector())
-    d = _at_payload_side(_diagnosis(fit, ("resonance",)), data, raw, params, before)
+    d = _at_payload_side(_diagnosis(fit, ("resonance",)), data, raw, params, before, checked[1])
     assert d.selected_effect == "resonance"
     assert d.side_angle == "resolver"
     assert d.to_json()["side_angle"] == "resolver"
@@ -125,7 +125,7 @@ def test_the_same_retry_on_the_fused_angle_does_not_adopt_it(case):
     """The side is what turns it, not the restart: from the same true mode,
     identified and judged again on the fused angle, the payload stays
     short of the noise and nothing is adopted."""
-    data, _, fit, params, _ = case
+    data, checked, fit, params, _ = case
     before = given_held(data, data.ax.rate_params().to_vector())
     diag = _diagnosis(fit, ("resonance",))
-    assert _at_payload_side(diag, data, data, params, before) is diag
+    assert _at_payload_side(diag, data, data, params, before, checked[1]) is diag

@@ -14,7 +14,10 @@ joint restarts -> the global step for a leading torque effect -> re-opened
 rate parameters -> acceptance), and here the loop over rounds and the final
 model (`_final_diagnosis`), returned as a `result.Diagnosis`. A tentative
 effect (significant, not at the noise) is judged once more, beside its
-rivals, at the gyro read-out that fits it better (`_tentative_read_out`).
+rivals, at the gyro read-out that fits it better (`_tentative_read_out`);
+a tentative payload resonance, with its rates identified with its mode
+held, on the side (fused or raw angle) where it fits better
+(`_payload_side`).
 
 Options of `diagnose`:
     max_iter: Levenberg-Marquardt iterations per fit (8: LuGre's bristle
@@ -182,30 +185,29 @@ def diagnose(
     side = _payload_side(diag, data, checked[1]) if joint else None
     if side is None:
         return diag
-    return _at_payload_side(diag, data, side, params, before_held)
+    return _at_payload_side(diag, data, side, params, before_held, checked[1])
 
 
 def _payload_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData | None:
     """Where the payload resonance is tentative: the runs stacked with the
     angle (fused or raw) on which its first-round fit costs less on the
-    training runs, these (`data`) or the other (`_other_side`); else None.
+    training runs, these (`data`) or the other (`_side_stack`); else None.
 
-    `side_choice` picks the fused or the raw angle with the starting model,
-    which on a payload axis is rigid and far off either way. With the mode
-    fitted the choice can turn: the fused angle follows the gyro on the
-    payload, which the model takes off only in part; a fine resolver is
-    then closer to the motor's angle, a coarse one is not. On the same side
-    the rate parameters identified with the polished mode held can still
-    go further than the payload stage's, which held the mode where the
-    local refit left it (docs/diagnosis.md "Stop 35")."""
+    `side_choice` picks the fused or the raw angle, and `read_out_timing`
+    the gyro's read-out, with the starting model, which on a payload axis
+    is rigid and far off either way. With the mode fitted the choice can
+    turn: the fused angle follows the gyro on the payload, which the model
+    takes off only in part; a fine resolver is then closer to the motor's
+    angle, a coarse one is not (docs/diagnosis.md "Stop 35")."""
     if PAYLOAD not in diag.tentative:
         return None
     fit = diag.rounds[0].fits.get(PAYLOAD)
     if fit is None:
         return None
-    other = _other_side(data, holdout)
-    if other is None:
+    if data.side_source != "measured":
         return data
+    fused = data.runs.train[0].resolver is not None
+    other = _side_stack(data, holdout, not fused, data.timing)
     costs = [
         float(np.sum(residuals(d.train, fit.rate_vector, fixed=fit.effects()) ** 2))
         for d in (data, other)
@@ -213,25 +215,21 @@ def _payload_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisDat
     return other if costs[1] < costs[0] else data
 
 
-def _other_side(data: DiagnosisData, holdout) -> DiagnosisData | None:
-    """The runs stacked with the other angle as the side: the resolver's
-    where the fused angle was chosen, and the other way round (side source
-    ``measured`` only; else None)."""
-    if data.side_source != "measured":
-        return None
-    if data.runs.train[0].resolver is not None:  # fused: read the resolver
-        train, held, source = data.runs.raw, list(holdout), "raw"
-    else:
-        shift = data.timing.side_shift / data.integration.substeps
+def _side_stack(data: DiagnosisData, holdout, fused: bool, timing: Timing) -> DiagnosisData:
+    """The runs stacked with the fused angle (`fused`) or the raw one as the
+    side, at the read-out `timing`."""
+    if fused:
+        shift = timing.side_shift / data.integration.substeps
         train, held = (
             [with_side_angle(r, "measured", shift) for r in rs] for rs in (data.runs.raw, holdout)
         )
-        source = "measured"
+    else:
+        train, held = data.runs.raw, list(holdout)
     return stacked(
         DiagnosisRuns(data.runs.raw, train, held),
         data.ax,
-        source,
-        data.timing,
+        "measured" if fused else "raw" if data.side_source == "measured" else data.side_source,
+        timing,
         data.integration,
         seed=data.seed,
         max_iter=data.max_iter,
@@ -239,16 +237,36 @@ def _other_side(data: DiagnosisData, holdout) -> DiagnosisData | None:
     )
 
 
-def _at_payload_side(diag, data, side, params, before_held) -> Diagnosis:
+def _payload_read_out(side: DiagnosisData, fit: CandidateFit, holdout):
+    """(`identify` with the payload's mode held, the runs stacked at the
+    read-out it fits best): both gyro readings tried (the half-plane's
+    shift too on the fused angle, as `identify` chooses it), from the
+    equation-error start (no global search)."""
+    fused = side.runs.train[0].resolver is not None
+    if fused:
+        # On the fused angle `identify` chooses the read-out itself.
+        again = identify_held(side, fit.effects(), timing=None, generations=0)
+    else:
+        tries = [
+            identify_held(side, fit.effects(), timing=t, generations=0)
+            for t in (side.timing, _flipped_timing(side))
+        ]
+        again = min(tries, key=lambda r: r.cost)
+    if again.timing == side.timing:
+        return again, side
+    return again, _side_stack(side, holdout, fused, again.timing)
+
+
+def _at_payload_side(diag, data, side, params, before_held, holdout) -> Diagnosis:
     """The payload resonance and its first-round rivals judged again on the
-    side `side` chose (`_payload_side`), each with its rate parameters
-    identified there with its effect held; `diag` where no effect is
-    adopted there."""
+    side `side` chose (`_payload_side`), at the read-out that fits the mode
+    best (`_payload_read_out`; `holdout`: the held-out runs as given), each with its rate parameters identified
+    there with its effect held; `diag` where no effect is adopted there."""
     fit = diag.rounds[0].fits[PAYLOAD]
-    again = identify_held(side, fit.effects(), timing=data.timing, generations=0)
-    starts = _rival_starts(diag, side, again)
-    rnd = round_at_read_out(side, starts, tuple(data.ax.effects))
-    diag2 = _final_diagnosis(side, params, diag.axis, [rnd], before_held)
+    again, there = _payload_read_out(side, fit, holdout)
+    starts = _rival_starts(diag, there, again)
+    rnd = round_at_read_out(there, starts, tuple(data.ax.effects))
+    diag2 = _final_diagnosis(there, params, diag.axis, [rnd], before_held)
     return diag2 if diag2.selected_effect != BASELINE else diag
 
 
