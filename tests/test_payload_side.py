@@ -110,7 +110,10 @@ def test_the_other_way_round_the_cost_keeps_the_resolvers_side(case):
     data, checked, fit, _, _ = case
     raw = _payload_side(_diagnosis(fit, ("resonance",)), data, checked[1])
     chosen_raw = replace(raw, side_source="measured")
-    assert _payload_side(_diagnosis(fit, ("resonance",)), chosen_raw, checked[1]) is chosen_raw
+    kept = _payload_side(_diagnosis(fit, ("resonance",)), chosen_raw, checked[1])
+    assert kept.runs.train is chosen_raw.runs.train
+    # Named as read: `identify` on side source ``measured`` would fuse it.
+    assert kept.side_source == "raw"
 
 
 def test_the_retry_adopts_the_payload_at_the_noise(case):

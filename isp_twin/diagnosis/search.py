@@ -212,7 +212,11 @@ def _payload_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisDat
         float(np.sum(residuals(d.train, fit.rate_vector, fixed=fit.effects()) ** 2))
         for d in (data, other)
     ]
-    return other if costs[1] < costs[0] else data
+    if costs[1] < costs[0]:
+        return other
+    # The raw angle `side_choice` kept, named so: `identify` on side source
+    # ``measured`` would read the fused one.
+    return data if fused else replace(data, side_source="raw")
 
 
 def _side_stack(data: DiagnosisData, holdout, fused: bool, timing: Timing) -> DiagnosisData:
@@ -260,8 +264,9 @@ def _payload_read_out(side: DiagnosisData, fit: CandidateFit, holdout):
 def _at_payload_side(diag, data, side, params, before_held, holdout) -> Diagnosis:
     """The payload resonance and its first-round rivals judged again on the
     side `side` chose (`_payload_side`), at the read-out that fits the mode
-    best (`_payload_read_out`; `holdout`: the held-out runs as given), each with its rate parameters identified
-    there with its effect held; `diag` where no effect is adopted there."""
+    best (`_payload_read_out`; `holdout`: the held-out runs as given), each
+    with its rate parameters identified there with its effect held; `diag`
+    where no effect is adopted there."""
     fit = diag.rounds[0].fits[PAYLOAD]
     again, there = _payload_read_out(side, fit, holdout)
     starts = _rival_starts(diag, there, again)
