@@ -45,6 +45,7 @@ __all__ = [
     "checked_inputs",
     "read_out_timing",
     "side_choice",
+    "fused_runs",
     "stacked",
     "given_held",
 ]
@@ -264,8 +265,7 @@ def side_choice(runs, holdout, ax, timing, integration, x_start) -> tuple[list, 
     # the starting model better: a gyro scale or bias error (the
     # sensor_bias effect) enters the integrated rate the fusion trusts
     # at short times and moves its zero crossings.
-    m = integration.substeps
-    fused = [with_side_angle(r, "measured", timing.side_shift / m) for r in runs]
+    fused = fused_runs(runs, timing, integration)
     costs = [
         float(
             np.sum(
@@ -285,9 +285,15 @@ def side_choice(runs, holdout, ax, timing, integration, x_start) -> tuple[list, 
         for rs in (fused, runs)
     ]
     if costs[0] <= costs[1]:
-        held = [with_side_angle(r, "measured", timing.side_shift / m) for r in holdout]
-        return fused, held
+        return fused, fused_runs(holdout, timing, integration)
     return runs, holdout
+
+
+def fused_runs(runs, timing: Timing, integration: Integration) -> list:
+    """The runs with the fused angle as their side angle, its half-plane
+    read at `timing`'s shift (a fraction of a step, over the sub-steps)."""
+    shift = timing.side_shift / integration.substeps
+    return [with_side_angle(r, "measured", shift) for r in runs]
 
 
 def stacked(

@@ -79,6 +79,7 @@ from isp_twin.diagnosis.prepared_runs import (
     DiagnosisData,
     DiagnosisRuns,
     checked_inputs,
+    fused_runs,
     given_held,
     read_out_timing,
     side_choice,
@@ -105,7 +106,6 @@ from isp_twin.estimation.simulation_error import predict_one, residuals, stack_r
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.fit import IdentificationResult
 from isp_twin.identification.read_out import Timing, fitted_with
-from isp_twin.identification.side_angle import with_side_angle
 from isp_twin.model.effects.torque_offset import ImpliedOffset, implied_offset
 from isp_twin.model.parameters import (
     RATE_LAYOUT,
@@ -185,7 +185,7 @@ def diagnose(
     side = _payload_side(diag, data, checked[1]) if joint else None
     if side is None:
         return diag
-    return _at_payload_side(diag, data, side, params, before_held, checked[1])
+    return _at_payload_side(diag, side, params, before_held, checked[1])
 
 
 def _payload_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData | None:
@@ -223,10 +223,7 @@ def _side_stack(data: DiagnosisData, holdout, fused: bool, timing: Timing) -> Di
     """The runs stacked with the fused angle (`fused`) or the raw one as the
     side, at the read-out `timing`."""
     if fused:
-        shift = timing.side_shift / data.integration.substeps
-        train, held = (
-            [with_side_angle(r, "measured", shift) for r in rs] for rs in (data.runs.raw, holdout)
-        )
+        train, held = (fused_runs(rs, timing, data.integration) for rs in (data.runs.raw, holdout))
     else:
         train, held = data.runs.raw, list(holdout)
     return stacked(
@@ -261,7 +258,7 @@ def _payload_read_out(side: DiagnosisData, fit: CandidateFit, holdout):
     return again, _side_stack(side, holdout, fused, again.timing)
 
 
-def _at_payload_side(diag, data, side, params, before_held, holdout) -> Diagnosis:
+def _at_payload_side(diag, side, params, before_held, holdout) -> Diagnosis:
     """The payload resonance and its first-round rivals judged again on the
     side `side` chose (`_payload_side`), at the read-out that fits the mode
     best (`_payload_read_out`; `holdout`: the held-out runs as given), each
@@ -269,19 +266,24 @@ def _at_payload_side(diag, data, side, params, before_held, holdout) -> Diagnosi
     where no effect is adopted there."""
     fit = diag.rounds[0].fits[PAYLOAD]
     again, there = _payload_read_out(side, fit, holdout)
-    starts = _rival_starts(diag, there, again)
-    rnd = round_at_read_out(there, starts, tuple(data.ax.effects))
-    diag2 = _final_diagnosis(there, params, diag.axis, [rnd], before_held)
-    return diag2 if diag2.selected_effect != BASELINE else diag
+    return _adopted_there(diag, there, there, again, params, before_held)
 
 
 def _at_read_out(diag, data, data2, again, params, before_held) -> Diagnosis:
     """The diagnosis of one round at the read-out `identify` chose with a
     tentative effect held (`data2`), the effect beside its rivals
     (`_rival_starts`); `diag` where no effect is adopted there."""
-    starts = _rival_starts(diag, data, again)
-    rnd = round_at_read_out(data2, starts, tuple(data.ax.effects))
-    diag2 = _final_diagnosis(data2, params, diag.axis, [rnd], before_held)
+    return _adopted_there(diag, data, data2, again, params, before_held)
+
+
+def _adopted_there(diag, rivals_on, there, again, params, before_held) -> Diagnosis:
+    """One round on `there`: the tentative effect (`again`: identified with
+    it held) beside its rivals (`_rival_starts`, identified on `rivals_on`
+    at `again`'s read-out), as a diagnosis; `diag` where no effect is
+    adopted."""
+    starts = _rival_starts(diag, rivals_on, again)
+    rnd = round_at_read_out(there, starts, tuple(there.ax.effects))
+    diag2 = _final_diagnosis(there, params, diag.axis, [rnd], before_held)
     return diag2 if diag2.selected_effect != BASELINE else diag
 
 
