@@ -32,6 +32,7 @@ __all__ = [
     "SIDE_L",
     "DIRECTIONS",
     "REGIMES",
+    "SIDE_SOURCES",
     "check_side",
 ]
 
@@ -58,6 +59,11 @@ DIRECTIONS: tuple[str, ...] = ("+", "-")
 #: The friction regimes in the order of the paper's parameter vector X
 #: (Eq. 8): index = 2 * side + direction (`isp_twin.model.friction.regime_of`).
 REGIMES: tuple[str, ...] = tuple(s + d for s in SIDES for d in DIRECTIONS)
+#: Side sources: where each step's side (R/L half-plane) is read from (the
+#: fused or raw measured angle, the wrapped angle, or a fixed side); a fit's
+#: option (`isp_twin.identification.side_angle`) and a parameter file's record
+#: of it (``fitted_with.side_source``).
+SIDE_SOURCES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
 
 
 def check_side(side: int | None) -> int | None:

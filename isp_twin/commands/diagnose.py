@@ -72,11 +72,12 @@ def _add_search_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--side",
-        default="measured",
+        default=None,
         choices=tuple(FIXED_SIDE),
         help="half-plane of the regimes: measured (the angle fused with the integrated rate, "
         "as identify; the raw angle if that fits the starting model better), raw (the angle "
-        "as measured), or fixed (a freely spinning motor)",
+        "as measured), or right/left (fixed: a freely spinning motor); default: the parameter "
+        "file's fitted_with.side_source, else measured",
     )
     p.add_argument("--max-rounds", type=int, default=2, help="at most this many effects are added")
     p.add_argument(
@@ -124,8 +125,10 @@ def execute(args: argparse.Namespace) -> int:
     axis_in = params.axis(args.axis)
     where = f"{params.path or params.name}: axes.{args.axis}"
     integration, timing, override = model_from_file(args, axis_in, where)
-    if override is not None and not args.quiet:
-        print(override)
+    side, side_override = _side_from_file(args, axis_in, where)
+    for line in (override, side_override):
+        if line is not None and not args.quiet:
+            print(line)
     candidates = None
     if args.candidates:
         candidates = [c.strip() for c in args.candidates.split(",") if c.strip()]
@@ -138,7 +141,7 @@ def execute(args: argparse.Namespace) -> int:
             candidates=candidates,
             max_rounds=args.max_rounds,
             max_iter=args.iterations,
-            side_source=args.side,
+            side_source=side,
             seed=args.seed,
             base_search=args.base_search,
             integration=integration,
@@ -146,12 +149,43 @@ def execute(args: argparse.Namespace) -> int:
         )
     result = diag.to_json()
     result.update(_model_source(args, axis_in, override))
+    if side_override is not None:
+        result["side_override"] = side_override
     result["sample_period_s"] = {d.name: d.dt for d in runs}
     result.setdefault("units", {})["sample_period_s"] = "s"
     say = _teller(args.quiet)
     _print_diagnosis(diag, result, args.axis, len(train), say)
     _write_outputs(args, diag, axis_in, result, report_path, recording, say)
     return 0
+
+
+def _side_from_file(
+    args: argparse.Namespace, axis_in: AxisParams, where: str
+) -> tuple[str, str | None]:
+    """The side source to diagnose with: ``--side``, else the one the file's
+    rate parameters were fitted with (``fitted_with.side_source``), else
+    ``measured``; and a line stating an override of the file (None if none).
+
+    Raises:
+        ParameterError: the file's side source is one diagnose does not read
+            (``wrap``) and ``--side`` does not choose another.
+    """
+    record = axis_in.fitted_with
+    if args.side is not None:
+        if record is None or record.side_source == args.side:
+            return args.side, None
+        return args.side, (
+            f"--side {args.side} overrides {where}.fitted_with.side_source "
+            f"{record.side_source}: the parameters were fitted on another half-plane"
+        )
+    if record is None:
+        return "measured", None
+    if record.side_source not in FIXED_SIDE:
+        raise ParameterError(
+            f"{where}.fitted_with.side_source: {record.side_source!r} is not a half-plane "
+            f"diagnose reads ({', '.join(FIXED_SIDE)}); choose one with --side"
+        )
+    return record.side_source, None
 
 
 def _model_source(args: argparse.Namespace, axis_in: AxisParams, override: str | None) -> dict:

@@ -470,7 +470,7 @@ def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
         final_x, final_fixed = x_file, given_fixed
     else:
         final_x, final_fixed = final.rate_vector, final.effects()
-        record = fitted_with(data.integration, data.timing)
+        record = fitted_with(data.integration, data.timing, data.side_source)
         params_out = params.with_axis(axis, _updated_axis(ax, final, record))
     final_resp = predict_one(train, final_x, final_fixed)
     return Diagnosis(

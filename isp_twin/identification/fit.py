@@ -669,14 +669,14 @@ def to_axis_params(result: IdentificationResult, prior: AxisParams, note: str = 
 
     Regimes not identified keep the prior values; the prior's effects are
     kept (they were part of the fitted model); the model and read-out timing
-    of the fit are recorded (`fitted_with`).
+    of the fit and the side source are recorded (`fitted_with`).
     """
     return fitted_axis(
         prior,
         result.vector,
         result.ci95,
         prior.effects,
-        fitted_with(result.integration, result.timing),
+        fitted_with(result.integration, result.timing, result.settings.side_source),
         note or prior.note,
         identified=result.regime_identified,
     )

@@ -47,8 +47,11 @@ TIMINGS: tuple[Timing, ...] = tuple(
 )
 
 
-def fitted_with(integration: Integration, timing: Timing) -> FittedWith:
-    """The parameter file's record (`FittedWith`) of a fit's model and read-out timing."""
+def fitted_with(
+    integration: Integration, timing: Timing, side_source: str = "measured"
+) -> FittedWith:
+    """The parameter file's record (`FittedWith`) of a fit's model, read-out
+    timing and side source (the angle the half-plane was read from)."""
     return FittedWith(
         substeps=int(integration.substeps),
         midpoint_friction=bool(integration.midpoint_friction),
@@ -59,6 +62,7 @@ def fitted_with(integration: Integration, timing: Timing) -> FittedWith:
         midstep_angle=bool(integration.midstep_angle),
         rest_drive_gain=bool(integration.rest_drive_gain),
         split_sides=bool(integration.split_sides),
+        side_source=side_source,
     )
 
 

@@ -16,6 +16,7 @@ from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.friction import regime_index
 from isp_twin.model.parameters import RATE_LAYOUT
 from isp_twin.units import DEG
+from isp_twin.vocabulary import SIDE_SOURCES
 
 __all__ = [
     "SIDE_SOURCES",
@@ -29,9 +30,6 @@ __all__ = [
     "regime_visits",
 ]
 
-#: Side sources: where each step's side (R/L half-plane) is read from (the
-#: fused or raw measured angle, the wrapped angle, or a fixed side).
-SIDE_SOURCES: tuple[str, ...] = ("measured", "raw", "wrap", "right", "left")
 #: Window of the angle/rate fusion [samples] (`fused_angle`).
 FUSION_WINDOW = 201
 #: Readings of exactly 0 in a row that make a stop on the boundary (`at_boundary`).

@@ -36,7 +36,7 @@ from isp_twin.errors import ParameterError, nearest
 from isp_twin.model.rate_layout import RateLayout
 from isp_twin.output.files import write_text_atomic
 from isp_twin.units import DEG
-from isp_twin.vocabulary import GIMBAL_AXES, REGIMES
+from isp_twin.vocabulary import GIMBAL_AXES, REGIMES, SIDE_SOURCES
 
 __all__ = [
     "REGIMES",
@@ -119,6 +119,10 @@ class FittedWith:
             ``midstep_angle``: absent means false).
         split_sides: a sub-step whose angle crosses 0 takes each side's
             regime for its part of it (optional as ``midstep_angle``).
+        side_source: the angle the half-plane was read from, one of
+            `SIDE_SOURCES` (``measured``: the angle fused with the integrated
+            rate; ``raw``: the angle as measured; optional: absent means
+            ``measured``, the default of both commands before it was kept).
         gyro_average: the gyro reads the rate averaged over the sample (else
             the rate at the sample instant).
         side_shift_steps: the half-plane is read from the angle at step start
@@ -134,6 +138,7 @@ class FittedWith:
     midstep_angle: bool = False
     rest_drive_gain: bool = False
     split_sides: bool = False
+    side_source: str = "measured"
 
 
 #: Keys of a ``fitted_with:`` block, in `FittedWith` order.
@@ -147,10 +152,12 @@ FITTED_WITH_KEYS: tuple[str, ...] = (
     "midstep_angle",
     "rest_drive_gain",
     "split_sides",
+    "side_source",
 )
 #: Keys a ``fitted_with:`` block may leave out: options added after files
 #: were written without them; absent means false, the rule those files were
-#: fitted with.
+#: fitted with (``side_source``, also optional, is a name: absent means
+#: ``measured``).
 FITTED_WITH_OPTIONAL: tuple[str, ...] = ("midstep_angle", "rest_drive_gain", "split_sides")
 #: Largest sub-step count a file or ``--substeps`` may ask for.
 MAX_SUBSTEPS = 100
@@ -373,7 +380,7 @@ def _parse_effects(raw, path, keys) -> tuple[EffectSpec, ...]:
 
 
 def _parse_fitted_with(raw, path, keys) -> FittedWith:
-    required = tuple(k for k in FITTED_WITH_KEYS if k not in FITTED_WITH_OPTIONAL)
+    required = tuple(k for k in FITTED_WITH_KEYS if k not in (*FITTED_WITH_OPTIONAL, "side_source"))
     _check_keys(raw, FITTED_WITH_KEYS, path, keys, required=required)
     m = raw["substeps"]
     if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= MAX_SUBSTEPS:
@@ -400,7 +407,13 @@ def _parse_fitted_with(raw, path, keys) -> FittedWith:
             f"{_where(path, keys + ['side_shift_steps'])}: must lie in [0, 1) (a fraction of a "
             f"step), got {shift}"
         )
-    return FittedWith(substeps=m, side_shift_steps=shift, **flags)
+    side = raw.get("side_source", "measured")
+    if side not in SIDE_SOURCES:
+        raise ParameterError(
+            f"{_where(path, keys + ['side_source'])}: expected one of "
+            f"{', '.join(SIDE_SOURCES)}, got {side!r}"
+        )
+    return FittedWith(substeps=m, side_shift_steps=shift, side_source=side, **flags)
 
 
 def _parse_axis(raw, path, keys) -> AxisParams:
@@ -497,6 +510,7 @@ def parameters_to_dict(params: ParameterSet) -> dict:
                 **{k: bool(getattr(f, k)) for k in FITTED_WITH_KEYS[1:5]},
                 "side_shift_steps": float(f.side_shift_steps),
                 **{k: bool(getattr(f, k)) for k in FITTED_WITH_OPTIONAL},
+                "side_source": str(f.side_source),
             }
         axes[name] = out
     return {
