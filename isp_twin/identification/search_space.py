@@ -114,9 +114,17 @@ def z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, n
     drive (b·Ke times the largest command: a level below 1e-4 of it changes
     no response, and a floor keeps the log-variables from sliding to -inf,
     where their gradient vanishes); alpha*|omega|_rms between 1e-3 and 1e4.
+
+    The peak drive is the axis' one, from the largest start gain of the
+    regimes: the regimes share one motor, and a start can miss a regime's
+    gain by far more than the regimes differ. On a payload axis (reference
+    resonance seed 100) the equation-error start put two regimes' gains at
+    1.4 % and 1.8 % of the truth; levels bounded by those regimes' own drive
+    stopped at a quarter of the true ones, and a start at the truth was
+    clipped to 120 noise floors (docs/identification.md "Stop 36").
     """
     r = np.asarray(x0, float).reshape(-1, RATE_LAYOUT.n_fields)
-    drive = r[:, 1] * u_peak
+    drive = np.full(len(r), np.max(r[:, 1]) * u_peak)
     lo = np.column_stack(
         [
             np.full(len(r), np.log(1e-5)),
