@@ -121,7 +121,7 @@ def z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, n
     resonance seed 100) the equation-error start put two regimes' gains at
     1.4 % and 1.8 % of the truth; levels bounded by those regimes' own drive
     stopped at a quarter of the true ones, and a start at the truth was
-    clipped to 120 noise floors (docs/identification.md "Stop 36").
+    clipped to 127 noise floors (docs/identification.md "Stop 36").
     """
     r = np.asarray(x0, float).reshape(-1, RATE_LAYOUT.n_fields)
     drive = np.full(len(r), np.max(r[:, 1]) * u_peak)

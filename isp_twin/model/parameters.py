@@ -119,14 +119,14 @@ class FittedWith:
             ``midstep_angle``: absent means false).
         split_sides: a sub-step whose angle crosses 0 takes each side's
             regime for its part of it (optional as ``midstep_angle``).
-        side_source: the angle the half-plane was read from, one of
-            `SIDE_SOURCES` (``measured``: the angle fused with the integrated
-            rate; ``raw``: the angle as measured; optional: absent means
-            ``measured``, the default of both commands before it was kept).
         gyro_average: the gyro reads the rate averaged over the sample (else
             the rate at the sample instant).
         side_shift_steps: the half-plane is read from the angle at step start
             + this fraction of a step (a sub-step) [steps], 0 <= x < 1.
+        side_source: the angle the half-plane was read from, one of
+            `SIDE_SOURCES` (``measured``: the angle fused with the integrated
+            rate; ``raw``: the angle as measured; optional: absent means
+            ``measured``, the default of both commands before it was kept).
     """
 
     substeps: int
