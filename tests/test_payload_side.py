@@ -120,7 +120,8 @@ def test_the_retry_adopts_the_payload_at_the_noise(case):
     data, checked, fit, params, mode = case
     raw = _payload_side(_diagnosis(fit, ("resonance",)), data, checked[1])
     before = given_held(data, data.ax.rate_params().to_vector())
-    d = _at_payload_side(_diagnosis(fit, ("resonance",)), raw, params, before, checked[1])
+    diag = _diagnosis(fit, ("resonance",))
+    d = _at_payload_side(diag, raw, params, before, checked[1], moved=True)
     assert d.selected_effect == "resonance"
     assert d.side_angle == "resolver"
     assert d.to_json()["side_angle"] == "resolver"
@@ -137,7 +138,7 @@ def test_the_same_retry_on_the_fused_angle_does_not_adopt_it(case):
     data, checked, fit, params, _ = case
     before = given_held(data, data.ax.rate_params().to_vector())
     diag = _diagnosis(fit, ("resonance",))
-    assert _at_payload_side(diag, data, params, before, checked[1]) is diag
+    assert _at_payload_side(diag, data, params, before, checked[1], moved=False) is diag
 
 
 def test_the_retry_reads_the_gyro_as_the_mode_held_fits_it(case):

@@ -73,6 +73,7 @@ import numpy as np
 from isp_twin.diagnosis.candidates import (
     BASELINE,
     CandidateFit,
+    fit_candidate,
     fit_candidates,
 )
 from isp_twin.diagnosis.prepared_runs import (
@@ -185,7 +186,8 @@ def diagnose(
     side = _payload_side(diag, data, checked[1]) if joint else None
     if side is None:
         return diag
-    return _at_payload_side(diag, side, params, before_held, checked[1])
+    moved = side.train is not data.train  # the other angle's stack, not the fit's own
+    return _at_payload_side(diag, side, params, before_held, checked[1], moved)
 
 
 def _payload_side(diag: Diagnosis, data: DiagnosisData, holdout) -> DiagnosisData | None:
@@ -250,13 +252,12 @@ def _payload_read_out(side: DiagnosisData, fit: CandidateFit, holdout):
     holding it cannot tell the readings apart: reference resonance seed
     100 (21.13 Hz, damping 7 % high at the point-sampled reading; refitted
     at the averaged one, the reference's, 21.24 Hz and the damping within
-    0.5 %; docs/diagnosis.md "Stop 36"). On another side than the fit's,
-    the fit is refitted there first (`_refit_on`), so that both readings
-    are compared refitted. Else both gyro readings are tried with the
-    mode held (the half-plane's shift too on the fused angle, as
-    `identify` chooses it)."""
+    0.5 %; docs/diagnosis.md "Stop 36"). `fit` is one made on `side`'s
+    training runs (`_at_payload_side` refits it there first when the side
+    moved), so that both readings are compared refitted. Else both gyro
+    readings are tried with the mode held (the half-plane's shift too on
+    the fused angle, as `identify` chooses it)."""
     fused = side.runs.train[0].resolver is not None
-    fit = _refit_on(side, fit)
     flipped = _other_gyro_read_out(side, fit)
     if flipped is not None:
         timing = _flipped_timing(side)
@@ -276,26 +277,20 @@ def _payload_read_out(side: DiagnosisData, fit: CandidateFit, holdout):
     return again, _side_stack(side, holdout, fused, again.timing)
 
 
-def _refit_on(side: DiagnosisData, fit: CandidateFit) -> CandidateFit:
-    """`fit` refitted, rate and effect parameters together, on the training
-    runs of `side` where they are not the ones it was fitted on (its
-    training cost differs there); else `fit`."""
-    sse = float(np.sum(residuals(side.train, fit.rate_vector, fixed=fit.effects()) ** 2))
-    if np.isclose(sse, fit.sse, rtol=1e-9, atol=0.0):
-        return fit
-    start = {fit.name: dict(fit.params)}
-    return fit_candidates(
-        side.train, fit.rate_vector, [fit.name], fit.fixed, starts=start, max_iter=side.max_iter
-    )[fit.name]
-
-
-def _at_payload_side(diag, side, params, before_held, holdout) -> Diagnosis:
+def _at_payload_side(diag, side, params, before_held, holdout, moved: bool) -> Diagnosis:
     """The payload resonance and its first-round rivals judged again on the
     side `side` chose (`_payload_side`), at the read-out that fits the mode
     best (`_payload_read_out`; `holdout`: the held-out runs as given), each
     with its rate parameters identified there with its effect held; `diag`
-    where no effect is adopted there."""
+    where no effect is adopted there. `moved`: `side` is the other angle's
+    stack, where the first round's payload fit is refitted first, rate and
+    mode parameters together."""
     fit = diag.rounds[0].fits[PAYLOAD]
+    if moved:
+        fit = fit_candidate(
+            side.train, fit.rate_vector, fit.name, fit.fixed, start=dict(fit.params),
+            max_iter=side.max_iter,
+        )  # fmt: skip
     again, there = _payload_read_out(side, fit, holdout)
     return _adopted_there(diag, there, there, again, params, before_held)
 
