@@ -19,6 +19,7 @@ from isp_twin.commands.progress import working
 from isp_twin.diagnosis.prepared_runs import FIXED_SIDE
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
+from isp_twin.estimation.coverage import beyond_training, reach_sentence
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
 from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
@@ -153,10 +154,21 @@ def execute(args: argparse.Namespace) -> int:
         result["side_override"] = side_override
     result["sample_period_s"] = {d.name: d.dt for d in runs}
     result.setdefault("units", {})["sample_period_s"] = "s"
+    _with_coverage(result, train, holdout, diag.noise_floor)
     say = _teller(args.quiet)
     _print_diagnosis(diag, result, args.axis, len(train), say)
     _write_outputs(args, diag, axis_in, result, report_path, recording, say)
     return 0
+
+
+def _with_coverage(result: dict, train, holdout, noise_floor: float) -> None:
+    """The regimes where the held-out runs go faster than the training runs
+    (`beyond_training`) into `result`, and into its verdict where the model
+    is not at the noise."""
+    beyond = beyond_training(train, holdout, noise_floor)
+    result["held_out_beyond_training"] = [b.to_json() for b in beyond]
+    if beyond and not result["converged"]:
+        result["verdict"] += ". " + reach_sentence(beyond).strip()
 
 
 def _side_from_file(

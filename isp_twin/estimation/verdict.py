@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from isp_twin.estimation.coverage import RegimeReach, reach_sentence
 from isp_twin.units import DEG
 
 __all__ = [
@@ -81,6 +82,8 @@ class FitVerdict:
         held_out: names of the held-out sets among `rmse`.
         converged: every set within `CONVERGED_RATIO` noise floors.
         advice: what to try when not converged ("" when converged).
+        beyond: the regimes where the held-out sets reach speeds the
+            training sets do not (`isp_twin.estimation.coverage.beyond_training`).
     """
 
     rmse: Mapping[str, float]
@@ -88,6 +91,7 @@ class FitVerdict:
     held_out: tuple[str, ...]
     converged: bool
     advice: str
+    beyond: tuple[RegimeReach, ...] = ()
 
     def ratio(self, name: str) -> float:
         floor = self.noise_floor[name]
@@ -133,6 +137,7 @@ class FitVerdict:
                 for n in self.rmse
             },
             "advice": self.advice,
+            "held_out_beyond_training": [b.to_json() for b in self.beyond],
         }
 
 
@@ -141,12 +146,16 @@ def fit_verdict(
     noise_floor: Mapping[str, float],
     held_out: Sequence[str] = (),
     advice: str = "",
+    beyond: Sequence[RegimeReach] = (),
 ) -> FitVerdict:
-    """Judge per-set RMS errors [rad/s] against per-set noise floors [rad/s]."""
+    """Judge per-set RMS errors [rad/s] against per-set noise floors [rad/s];
+    where not converged, the advice opens with the regimes `beyond` the
+    training speeds (`reach_sentence`)."""
     ratios = [rmse[n] / noise_floor[n] if noise_floor[n] > 0 else math.inf for n in rmse]
     converged = bool(ratios) and all(r <= CONVERGED_RATIO for r in ratios)
+    said = "" if converged else reach_sentence(beyond) + advice
     return FitVerdict(
-        dict(rmse), dict(noise_floor), tuple(held_out), converged, "" if converged else advice
+        dict(rmse), dict(noise_floor), tuple(held_out), converged, said, tuple(beyond)
     )
 
 

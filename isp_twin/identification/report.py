@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
+from isp_twin.estimation.coverage import beyond_training, reach_sentence
 from isp_twin.estimation.simulation_error import stack_runs
 from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
 from isp_twin.identification.cost import rmse, simulate_data
@@ -84,16 +85,19 @@ def identification_verdict(
     result: IdentificationResult, train: Sequence[MeasuredData], validation: Sequence[MeasuredData]
 ) -> FitVerdict:
     """Training and validation RMS errors against each set's noise floor;
-    the advice names a payload mode the sensors show (`payload_hint`)."""
+    the advice names the regimes where the validation runs leave the
+    training runs' speeds (`beyond_training`) and a payload mode the
+    sensors show (`payload_hint`)."""
     rmse_all = dict(result.rmse_train)
     rmse_all.update({k: v * DEG for k, v in rmse_table(result, validation).items()})
     floors = {d.name: noise_floor_of([d.omega]) for d in list(train) + list(validation)}
-    verdict = fit_verdict(rmse_all, floors, [d.name for d in validation], ADVICE)
+    beyond = beyond_training(train, validation, noise_floor_of([d.omega for d in train]))
+    verdict = fit_verdict(rmse_all, floors, [d.name for d in validation], ADVICE, beyond)
     if verdict.converged or any(e.name == "resonance" for e in result.effects):
         return verdict
     # Only a fit that has not converged gets advice: the runs are stacked
     # for the hint only then (a long log costs a stack of its length).
-    return replace(verdict, advice=payload_hint(train) + ADVICE)
+    return replace(verdict, advice=reach_sentence(beyond) + payload_hint(train) + ADVICE)
 
 
 def payload_hint(runs: Sequence[MeasuredData]) -> str:
