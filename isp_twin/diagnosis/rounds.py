@@ -22,14 +22,14 @@ from isp_twin.diagnosis.result import RoundResult, rms_of
 from isp_twin.diagnosis.selection import MIN_GAIN, Verdict, judge, select
 from isp_twin.errors import ParameterError
 from isp_twin.estimation.information import parameter_penalty
-from isp_twin.estimation.simulation_error import RunStack, predict_one, residuals_many
+from isp_twin.estimation.simulation_error import RunStack, predict_one, residuals, residuals_many
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.equation_error import (
     JOINT_FORMS,
     JointEstimate,
     equation_error_estimate,
     joint_equation_error_estimate,
-    sensor_bias_joint_estimate,
+    sensor_bias_joint_starts,
 )
 from isp_twin.identification.fit import IdentificationResult, identify
 from isp_twin.identification.fit import Settings as IdSettings
@@ -39,7 +39,6 @@ from isp_twin.model.parameters import (
     EffectSpec,
     RateParams,
 )
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 
 __all__ = [
     "REOPEN_CYCLES",
@@ -274,9 +273,7 @@ def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdic
     # Base and effect estimated together for the leaders (by local held-out
     # error and by the joint equation-error gain), the base restarted the
     # same way (`_joint_restarts`); then judged again.
-    starts = _joint_starts(
-        data.runs.raw, data.side_source, st.fits, remaining, x_current, data.train.integration
-    )
+    starts = _joint_starts(data, st.fits, remaining, x_current)
     lead = _leaders(verdicts, st.failed, starts, JOINT_TOP)
     again = _joint_restarts(
         data.train, {n: starts[n] for n in lead + [BASELINE] if n in starts}, fixed
@@ -622,15 +619,15 @@ def _acceptance(data, st, verdicts, base_search) -> RoundResult:
     )
 
 
-def _joint_starts(
-    raw_runs, side_source, fits, names, x_base, integration=DEFAULT_INTEGRATION
-) -> dict[str, JointEstimate]:
+def _joint_starts(data, fits, names, x_base) -> dict[str, JointEstimate]:
     """Base and effect estimated together for each candidate that has a joint
     form (`joint_equation_error_estimate`; shape parameters such as the
     cogging period from the candidate's local fit), and the base alone
     (`BASELINE`, the equation-error start without the effect). `sensor_bias`
     starts from the gyro error measured against the angle
-    (`sensor_bias_joint_estimate`)."""
+    (`sensor_bias_joint_starts`: of its two rate starts, the one that fits
+    the training runs better)."""
+    raw_runs, side_source = data.runs.raw, data.side_source
     fixed = next(iter(fits.values())).fixed if fits else ()
     prior = RateParams.from_vector(x_base)
     out = {
@@ -640,21 +637,27 @@ def _joint_starts(
             EffectSpec(n, dict(fits[n].params)),
             side_source,
             effects=fixed,
-            integration=integration,
+            integration=data.train.integration,
         )
         for n in names
         if n in JOINT_FORMS
     }
     if SENSOR_BIAS in names:
-        # The gyro error measured against the angle, the base's rate
-        # parameters mapped back to the true rate (only where the angle
-        # shows a gyro error).
-        gyro = sensor_bias_joint_estimate(raw_runs, prior)
-        if gyro is not None:
-            out[SENSOR_BIAS] = gyro
+        # Only where the angle shows a gyro error.
+        gyro = sensor_bias_joint_starts(raw_runs, prior, side_source, fixed)
+        if gyro:
+            out[SENSOR_BIAS] = _best_start(data.train, gyro, fixed)
     base = equation_error_estimate(raw_runs, prior, side_source, effects=fixed)
     out[BASELINE] = JointEstimate(base, None, float("nan"), float("nan"))
     return out
+
+
+def _best_start(train: RunStack, starts, fixed) -> JointEstimate:
+    """Of `starts` (one effect, several rate starts), the one whose simulation
+    fits the training runs best, with the effect and `fixed` held."""
+    xs = np.stack([s.rate.to_vector() for s in starts])
+    res = residuals(train, xs, fixed=(*fixed, starts[0].effect))
+    return starts[int(np.argmin(np.sum(res**2, axis=1)))]
 
 
 def equivalent_effects(rnd: RoundResult, train: RunStack) -> tuple[str, ...]:

@@ -32,7 +32,7 @@ __all__ = [
     "JOINT_FORMS",
     "JointEstimate",
     "joint_equation_error_estimate",
-    "sensor_bias_joint_estimate",
+    "sensor_bias_joint_starts",
 ]
 
 
@@ -681,18 +681,36 @@ def _effect_drive(
     return u, more
 
 
-def sensor_bias_joint_estimate(
-    data: Sequence[MeasuredData], base: RateParams
-) -> JointEstimate | None:
-    """The `sensor_bias` effect and the base together: the gyro error from
-    the angle (`gyro_error_estimate`), the base fitted to the gyro reading
-    mapped back to the true rate (`rate_behind_gyro_error`).
+def sensor_bias_joint_starts(
+    data: Sequence[MeasuredData],
+    base: RateParams,
+    side_source: str = "measured",
+    effects: Sequence[EffectSpec] = (),
+) -> tuple[JointEstimate, ...]:
+    """The `sensor_bias` effect and the base together, two ways: the gyro
+    error from the angle (`gyro_error_estimate`) with (1) the base fitted to
+    the gyro reading mapped back to the true rate (`rate_behind_gyro_error`),
+    and (2) the base estimated by equation error from the readings with that
+    error taken out (`equation_error_estimate`, `effects` held).
 
-    Returns None when the estimate's 95 % intervals contain the exact gyro
-    (b = 0 and s = 0): the angle shows no gyro error to start from.
+    (1) keeps what a base that converged on the reading knows (in motion it
+    absorbed the error exactly); (2) does not inherit a base the error threw
+    off: a bias reads as motion where the axis is at rest, and on reference
+    sensor_bias seed 100 (a bias of 17 noise sigmas) `identify` left the
+    first training run at 146 noise floors; mapped back, that base restarted
+    to a bias 3.8x the measured one, from (2) to the noise
+    (docs/diagnosis.md "Stop 37").
+
+    Returns both starts, or none when the estimate's 95 % intervals contain
+    the exact gyro (b = 0 and s = 0): the angle shows no gyro error to start from.
     """
     est = gyro_error_estimate(data)
     if est.contains_null():
-        return None
+        return ()
     spec = EffectSpec("sensor_bias", {"bias_rad_s": est.bias_rad_s, "scale": est.scale})
-    return JointEstimate(rate_behind_gyro_error(base, est), spec, float("nan"), float("nan"))
+    fresh = equation_error_estimate(data, base, side_source, effects=(*effects, spec))
+    nan = float("nan")
+    return (
+        JointEstimate(rate_behind_gyro_error(base, est), spec, nan, nan),
+        JointEstimate(fresh, spec, nan, nan),
+    )
