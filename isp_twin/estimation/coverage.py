@@ -6,9 +6,9 @@ the fastest speed a training run reaches there: above it, the Coulomb level
 and the tail of the Stribeck curve are whatever fitted the training runs,
 and two parameter sets that fit them to the noise can differ held out by
 tens of noise floors. On reference resonance seed 108 (a 0.7 s axis) the
-5 Hz cosine training runs reach 6.4 deg/s in regime L-, the held-out
-multisine 27 deg/s; with its payload mode held at the truth, `identify`
-fits the training runs at 1.00 noise floors with L-'s Coulomb level at
+5 Hz cosine training runs reach 6.2 deg/s in regime L-, the held-out
+multisine 32 deg/s; with its payload mode held at the truth, `identify`
+fits the training runs at 1.00 noise sigmas with L-'s Coulomb level at
 0.36 of the truth's, and misses the held-out run by 52 (the truth: 0.98;
 docs/identification.md "Stop 37").
 
