@@ -62,17 +62,25 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     seeds = _seeds(args.seeds)
     effect = None if args.effect == "none" else args.effect
+    from distributed import as_completed
+
     client, cluster = dask_client(args.scheduler, args.jobs, len(seeds))
+    rows = []
     try:
-        rows = client.gather([client.submit(one_seed, s, effect, pure=False) for s in seeds])
+        futures = [client.submit(one_seed, s, effect, pure=False) for s in seeds]
+        for fut in as_completed(futures):
+            r = fut.result()
+            rows.append(r)
+            worst = max(r["beyond"].values(), default=float("nan"))
+            names = ", ".join(r["beyond"]) or "-"
+            print(
+                f"seed {r['seed']:4d}  tau {r['tau_s']:.3f} s  beyond: {names}  (x{worst:.2f})",
+                flush=True,
+            )
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
-    for r in rows:
-        worst = max(r["beyond"].values(), default=float("nan"))
-        names = ", ".join(r["beyond"]) or "-"
-        print(f"seed {r['seed']:4d}  tau {r['tau_s']:.3f} s  beyond: {names}  (x{worst:.2f})")
     n_out = sum(1 for r in rows if r["beyond"])
     print(f"\nheld-out run beyond the training speeds: {n_out}/{len(rows)} axes")
     for lo, hi in zip(TAU_EDGES, TAU_EDGES[1:]):
