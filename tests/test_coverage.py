@@ -14,6 +14,7 @@ from isp_twin.commands.diagnose import _with_coverage
 from isp_twin.estimation.coverage import BEYOND_RATIO, REACH_QUANTILE, beyond_training
 from isp_twin.estimation.verdict import fit_verdict
 from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.units import DEG
 from isp_twin.vocabulary import REGIMES
 
@@ -125,3 +126,23 @@ def test_identify_on_a_reference_axis_whose_held_out_run_is_faster(tmp_path):
         assert b["held_out_reach_deg_s"] > 2.0 * b["training_reach_deg_s"]
     if not verdict["converged"]:
         assert verdict["advice"].startswith("The held-out runs go faster")
+
+
+def test_a_fixed_side_names_only_its_own_regimes():
+    """A freely spinning motor read with ``--side right`` (HSM150): every
+    sample is on the right, whatever the angle's sign."""
+    train, held = [_run("a", 1.0, seed=1)], [_run("h", 2.0, seed=1)]
+    right = beyond_training(sides_as_read(train, "right"), sides_as_read(held, "right"), 1e-4)
+    assert [b.regime for b in right] == ["R+", "R-"]
+    left = beyond_training(sides_as_read(train, "left"), sides_as_read(held, "left"), 1e-4)
+    assert [b.regime for b in left] == ["L+", "L-"]
+    # The measured side is read as the angle's sign (no fusion): all four.
+    both = beyond_training(sides_as_read(train, "measured"), sides_as_read(held, "measured"), 1e-4)
+    assert [b.regime for b in both] == list(REGIMES)
+
+
+def test_a_wrapped_side_reads_the_angle_modulo_a_turn():
+    train = _run("a", 1.0, seed=1)
+    turned = MeasuredData("a", train.t, train.u, train.omega, train.angle + 2 * np.pi, None, DT)
+    (read,) = sides_as_read([turned], "wrap")
+    np.testing.assert_allclose(read.angle, train.angle, atol=1e-12)

@@ -21,6 +21,7 @@ from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
 from isp_twin.estimation.coverage import beyond_training, reach_sentence
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
+from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
 from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
 from isp_twin.units import DEG
@@ -154,7 +155,9 @@ def execute(args: argparse.Namespace) -> int:
         result["side_override"] = side_override
     result["sample_period_s"] = {d.name: d.dt for d in runs}
     result.setdefault("units", {})["sample_period_s"] = "s"
-    _with_coverage(result, train, holdout, diag.noise_floor)
+    _with_coverage(
+        result, sides_as_read(train, side), sides_as_read(holdout, side), diag.noise_floor
+    )
     say = _teller(args.quiet)
     _print_diagnosis(diag, result, args.axis, len(train), say)
     _write_outputs(args, diag, axis_in, result, report_path, recording, say)

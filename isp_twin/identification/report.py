@@ -19,6 +19,7 @@ from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
 from isp_twin.identification.cost import rmse, simulate_data
 from isp_twin.identification.fit import IdentificationResult
 from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.effects.resonance import Resonance
 from isp_twin.model.parameters import PAPER_FIELDS, RATE_LAYOUT, AxisParams
 from isp_twin.output.files import staged_path, write_text_atomic
@@ -91,7 +92,12 @@ def identification_verdict(
     rmse_all = dict(result.rmse_train)
     rmse_all.update({k: v * DEG for k, v in rmse_table(result, validation).items()})
     floors = {d.name: noise_floor_of([d.omega]) for d in list(train) + list(validation)}
-    beyond = beyond_training(train, validation, noise_floor_of([d.omega for d in train]))
+    side = result.settings.side_source
+    beyond = beyond_training(
+        sides_as_read(train, side),
+        sides_as_read(validation, side),
+        noise_floor_of([d.omega for d in train]),
+    )
     verdict = fit_verdict(rmse_all, floors, [d.name for d in validation], ADVICE, beyond)
     if verdict.converged or any(e.name == "resonance" for e in result.effects):
         return verdict

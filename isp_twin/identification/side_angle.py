@@ -25,6 +25,7 @@ __all__ = [
     "fusion_noise",
     "side_angle",
     "with_side_angle",
+    "sides_as_read",
     "window_accel",
     "at_boundary",
     "regime_visits",
@@ -147,6 +148,16 @@ def side_angle(data: MeasuredData, side_source: str = "measured", shift: float =
     if side_source == "left":
         return -np.ones_like(data.angle)
     raise ParameterError(f"side source '{side_source}' unknown; allowed: {', '.join(SIDE_SOURCES)}")
+
+
+def sides_as_read(runs: Sequence[MeasuredData], side_source: str) -> list[MeasuredData]:
+    """The runs with an angle whose sign is their side for `side_source`,
+    without the fusion (the measured angle as read for ``measured``): a
+    constant for a fixed side, the wrapped angle for ``wrap``. For what
+    needs the regimes of whole runs, not the sample of each crossing
+    (`isp_twin.estimation.coverage.beyond_training`)."""
+    source = "raw" if side_source == "measured" else side_source
+    return [replace(d, angle=side_angle(d, source)) for d in runs]
 
 
 def with_side_angle(data: MeasuredData, side_source: str, shift: float = 0.0) -> MeasuredData:
