@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
 from pathlib import Path
 
-from isp_twin.estimation.coverage import beyond_training, reach_sentence
+from isp_twin.estimation.coverage import beyond_training
 from isp_twin.estimation.simulation_error import stack_runs
 from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
 from isp_twin.identification.cost import rmse, simulate_data
@@ -98,12 +97,13 @@ def identification_verdict(
         sides_as_read(validation, side),
         noise_floor_of([d.omega for d in train]),
     )
-    verdict = fit_verdict(rmse_all, floors, [d.name for d in validation], ADVICE, beyond)
+    names = [d.name for d in validation]
+    verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond)
     if verdict.converged or any(e.name == "resonance" for e in result.effects):
         return verdict
     # Only a fit that has not converged gets advice: the runs are stacked
     # for the hint only then (a long log costs a stack of its length).
-    return replace(verdict, advice=reach_sentence(beyond) + payload_hint(train) + ADVICE)
+    return fit_verdict(rmse_all, floors, names, payload_hint(train) + ADVICE, beyond)
 
 
 def payload_hint(runs: Sequence[MeasuredData]) -> str:
