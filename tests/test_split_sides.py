@@ -92,12 +92,12 @@ def test_a_gain_jump_at_the_crossing_is_integrated_to_first_order(given_angle):
     # with the model's own angle (exact before the crossing: the rate is
     # steady) nearly nothing: less than 100 unsplit sub-steps leave.
     _, _, step = _crossing_run()
-    unsplit = _error(Integration(), given_angle)
+    unsplit = _error(Integration(split_sides=False), given_angle)
     split = _error(Integration(split_sides=True), given_angle)
     assert unsplit > 1e-3 * step
     assert split < 0.05 * unsplit
     if not given_angle:
-        assert split < 0.05 * _error(Integration(substeps=100), False)
+        assert split < 0.05 * _error(Integration(substeps=100, split_sides=False), False)
 
 
 def _args(*argv: str) -> argparse.Namespace:
@@ -107,13 +107,15 @@ def _args(*argv: str) -> argparse.Namespace:
 
 
 def test_the_option_is_asked_for_and_the_parameter_file_records_it(tmp_path):
-    # Opt-in (Integration's docstring says why); Eq. 6 holds the regime of
-    # the sample's start unless asked. identify's record carries it through
-    # the file; a file written without the key is replayed without it.
-    assert not EQ6.split_sides and not Integration().split_sides
-    assert integration_from_args(_args("--split-sides")).split_sides
-    assert integration_from_args(_args("--split-sides", "--substeps", "1")).substeps == 1
-    assert not integration_from_args(_args()).split_sides
+    # On by default since stop 38 (Integration's docstring says why); Eq. 6
+    # holds the regime of the sample's start unless asked. identify's record
+    # carries it through the file; a file written without the key is
+    # replayed without it (the files written before the option).
+    assert not EQ6.split_sides and Integration().split_sides
+    assert integration_from_args(_args()).split_sides
+    assert not integration_from_args(_args("--no-split-sides")).split_sides
+    assert not integration_from_args(_args("--substeps", "1")).split_sides
+    assert integration_from_args(_args("--split-sides", "--substeps", "1")).split_sides
     params = load_parameters(default_parameters_path())
     ax = params.axis("inner_az")
     for split in (True, False):
@@ -136,6 +138,10 @@ def test_the_option_is_asked_for_and_the_parameter_file_records_it(tmp_path):
     integration, _, override = model_from_file(_args("--substeps", "4"), split_file, "p.yaml")
     assert integration.substeps == 4 and integration.split_sides
     assert override.startswith("--substeps 4 overrides p.yaml")
+    # --no-split-sides on a file fitted with it: the file's sub-steps, not split.
+    integration, _, override = model_from_file(_args("--no-split-sides"), split_file, "p.yaml")
+    assert not integration.split_sides and integration.substeps == record.substeps
+    assert override.startswith("--no-split-sides overrides p.yaml.fitted_with.split_sides true")
     text = path.read_text().replace("      split_sides: false\n", "")
     assert "split_sides" not in text.split("inner_el")[0]
     path.write_text(text)
@@ -166,7 +172,7 @@ def test_reference_payload_rung_by_a_gain_jump_reaches_the_noise_with_its_truth(
     # the left side): with its true parameters the library read 1.36-1.38
     # gyro sigmas on every run, its 56 Hz payload rung by the gain's jump at
     # each crossing; split, at the noise.
-    before = _truth_error(79, Integration())
+    before = _truth_error(79, Integration(split_sides=False))
     after = _truth_error(79, Integration(split_sides=True))
     assert min(before) > 1.25
     assert max(after) < 1.05

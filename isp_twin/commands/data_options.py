@@ -72,22 +72,26 @@ def add_data_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--split-sides",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=None,
         help="a sub-step in which the angle crosses 0 takes each side's regime for its part "
-        'of it (docs/diagnosis.md "Stop 34"; diagnose: the parameter file\'s fitted_with '
-        "block says whether its parameters were fitted so)",
+        'of it (docs/diagnosis.md "Stop 34", default since "Stop 38"; diagnose: the '
+        "parameter file's fitted_with block says whether its parameters were fitted so; "
+        "a file without the block: the default)",
     )
 
 
 def integration_from_args(args: argparse.Namespace) -> Integration:
-    """The model integration ``--substeps`` and ``--split-sides`` ask for (1: Eq. 6
-    exactly, its regime switched at the crossing with ``--split-sides``; not
-    given: the default)."""
+    """The model integration ``--substeps`` and ``--split-sides`` /
+    ``--no-split-sides`` ask for (1: Eq. 6 exactly, its regime switched at the
+    crossing only with ``--split-sides``; not given: the default)."""
     m = DEFAULT_INTEGRATION.substeps if args.substeps is None else args.substeps
     if m < 1 or m > MAX_SUBSTEPS:
         raise ParameterError(f"--substeps must be between 1 and {MAX_SUBSTEPS}, got {m}")
     integration = EQ6 if m == 1 else replace(DEFAULT_INTEGRATION, substeps=m)
-    return replace(integration, split_sides=True) if args.split_sides else integration
+    if args.split_sides is None:
+        return integration
+    return replace(integration, split_sides=bool(args.split_sides))
 
 
 def model_from_file(
@@ -105,17 +109,18 @@ def model_from_file(
     if record is None:
         return integration_from_args(args), None, None
     same_steps = args.substeps is None or args.substeps == record.substeps
-    if same_steps and (record.split_sides or not args.split_sides):
+    same_split = args.split_sides is None or bool(args.split_sides) == record.split_sides
+    if same_steps and same_split:
         integration, timing = recorded_model(record)
         return integration, timing, None
-    if same_steps:  # --split-sides on a file fitted without it
-        integration = replace(recorded_model(record)[0], split_sides=True)
-        what = f"--split-sides overrides {where}.fitted_with.split_sides false"
-    else:  # another sub-step count; a split the file was fitted with stays
+    if same_steps:  # --split-sides / --no-split-sides against the file's
+        integration = replace(recorded_model(record)[0], split_sides=bool(args.split_sides))
+        flag = "--split-sides" if args.split_sides else "--no-split-sides"
+        what = f"{flag} overrides {where}.fitted_with.split_sides {str(record.split_sides).lower()}"
+    else:  # another sub-step count; the file's split stays unless asked
         integration = integration_from_args(args)
-        integration = replace(
-            integration, split_sides=integration.split_sides or record.split_sides
-        )
+        split = record.split_sides if args.split_sides is None else bool(args.split_sides)
+        integration = replace(integration, split_sides=split)
         what = (
             f"--substeps {args.substeps} overrides {where}.fitted_with.substeps {record.substeps}"
         )

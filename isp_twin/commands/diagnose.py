@@ -209,7 +209,7 @@ def _model_source(args: argparse.Namespace, axis_in: AxisParams, override: str |
         source = "--substeps / --split-sides (overrides the parameter file's fitted_with)"
     elif axis_in.fitted_with is not None:
         source = "parameter file (fitted_with)"
-    elif args.substeps is not None or args.split_sides:
+    elif args.substeps is not None or args.split_sides is not None:
         source = "--substeps / --split-sides (the parameter file has no fitted_with block)"
     else:
         source = "defaults (the parameter file has no fitted_with block)"

@@ -127,11 +127,11 @@ class Integration:
             motor gain between the sides then drives the wrong impulse at
             every crossing (reference resonance seed 79 with its true
             parameters: 1.38 -> 1.01 noise sigmas on train1, its payload
-            rung by the jump; docs/diagnosis.md "Stop 34"). Opt-in
-            (``--split-sides``) until the fits are benchmarked with it: on
-            dev seed deadzone 1000 it moves the held-out error of the
-            right fit from 1.42 to 1.53 noise floors, and diagnose then
-            answers ``none`` (the effect tentative).
+            rung by the jump; docs/diagnosis.md "Stop 34"). On by default
+            since stop 38 (``--no-split-sides`` turns it off): on the
+            low-noise reference axes the lag alone put the truth at 1.4
+            noise sigmas, and the fits bent the friction levels to absorb
+            it (docs/diagnosis.md "Stop 38").
     """
 
     substeps: int = 10
@@ -140,7 +140,7 @@ class Integration:
     exact_effect_hold: bool = True
     midstep_angle: bool = True
     rest_drive_gain: bool = True
-    split_sides: bool = False
+    split_sides: bool = True
 
     def __post_init__(self):
         if int(self.substeps) != self.substeps or self.substeps < 1:
