@@ -14,10 +14,11 @@ minute per axis.
 
 The dead zone's axis is identified with ``--no-split-sides``, the model the
 read-out retry was shaped with. With the default since stop 38 (the side
-change split inside the sub-step) its dead zone is still the only
-significant candidate, its width within 1 %, and the training runs at the
-noise; but held out it reads 1.53 noise floors (1.40 unsplit), so it is
-tentative and the answer `none`. The training runs do not pin its Stribeck
+change split inside the sub-step) its dead zone still leads the first
+round, its width within 1 %, and at the averaged read-out the training
+runs are at the noise; but held out it reads 1.53 noise floors (1.40
+unsplit), so it is tentative (an input delay beside it at the file's
+point read-out) and the answer `none`. The training runs do not pin its Stribeck
 levels (the fit's training cost is below the truth's, docs/diagnosis.md
 "Stop 34"): where the held-out error lands in that flat valley is not a
 property of the split. This pins the retry, not the default model's answer
