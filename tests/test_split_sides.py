@@ -15,26 +15,21 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy.optimize import brentq
+from truth_error import truth_error
 
 from isp_twin.commands.data_options import (
     add_data_options,
     integration_from_args,
     model_from_file,
 )
-from isp_twin.identification.cost import rmse
-from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing, fitted_with
 from isp_twin.model.parameters import (
-    RATE_LAYOUT,
-    EffectSpec,
     RateParams,
     load_parameters,
     save_parameters,
 )
 from isp_twin.model.substep_model import EQ6, Integration, simulate_substeps
-from isp_twin.reference import design_experiment
 from isp_twin.resources import default_parameters_path
-from isp_twin.units import DEG
 
 T = 1e-3
 N = 30
@@ -148,31 +143,12 @@ def test_the_option_is_asked_for_and_the_parameter_file_records_it(tmp_path):
     assert not load_parameters(path).axis("inner_az").fitted_with.split_sides
 
 
-def _truth_error(seed: int, integration: Integration) -> list[float]:
-    """The library with the reference's true parameters (resonance axis
-    `seed`): RMS error over the gyro sigma per run."""
-    exp = design_experiment(seed, "resonance")
-    truth = exp.truth()
-    regimes = truth["rate_form"]["regimes"]
-    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
-    effect = EffectSpec("resonance", truth["effects"][0]["params"])
-    timing = Timing(0.0, truth["sensors"]["gyro_averaged"])
-    sigma = truth["noise_sigma_deg_s"] * DEG
-    out = []
-    for name, r in sorted(exp.runs.items()):
-        data = [MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])]
-        e = rmse(RateParams.from_vector(x), data, effects=[effect], timing=timing,
-                 integration=integration)  # fmt: skip
-        out.append(float(e) / sigma)
-    return out
-
-
 def test_reference_payload_rung_by_a_gain_jump_reaches_the_noise_with_its_truth():
     # Reference resonance seed 79 (9 ms axis, the motor gain 46 % higher on
     # the left side): with its true parameters the library read 1.36-1.38
     # gyro sigmas on every run, its 56 Hz payload rung by the gain's jump at
     # each crossing; split, at the noise.
-    before = _truth_error(79, Integration(split_sides=False))
-    after = _truth_error(79, Integration(split_sides=True))
+    before = truth_error(79, "resonance", Integration(split_sides=False))
+    after = truth_error(79, "resonance", Integration(split_sides=True))
     assert min(before) > 1.25
     assert max(after) < 1.05

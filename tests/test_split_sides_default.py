@@ -14,53 +14,27 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 
-import numpy as np
 import pytest
 import yaml
+from truth_error import truth_error
 
 from isp_twin.cli import main
-from isp_twin.identification.cost import rmse
-from isp_twin.identification.measured import MeasuredData
-from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import (
-    RATE_LAYOUT,
     EffectSpec,
-    RateParams,
     load_parameters,
     save_parameters,
 )
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
-from isp_twin.reference import design_experiment
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 from isp_twin.resources import default_parameters_path
-from isp_twin.units import DEG
 
 SEED = 102
 EFFECT = "input_delay"
 
 
-def _truth_error(integration: Integration) -> list[float]:
-    """The library with the reference's true parameters: RMS error over the
-    gyro sigma per run (train1, train2, held-out)."""
-    exp = design_experiment(SEED, EFFECT)
-    truth = exp.truth()
-    regimes = truth["rate_form"]["regimes"]
-    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
-    effects = [EffectSpec(e["name"], e["params"]) for e in truth["effects"]]
-    timing = Timing(0.0, truth["sensors"]["gyro_averaged"])
-    sigma = truth["noise_sigma_deg_s"] * DEG
-    out = []
-    for name, r in sorted(exp.runs.items()):
-        data = [MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])]
-        e = rmse(RateParams.from_vector(x), data, effects=effects, timing=timing,
-                 integration=integration)  # fmt: skip
-        out.append(float(e) / sigma)
-    return out
-
-
 def test_the_default_model_holds_the_truth_of_a_quiet_axis_at_the_noise():
     assert DEFAULT_INTEGRATION.split_sides
-    before = _truth_error(replace(DEFAULT_INTEGRATION, split_sides=False))
-    after = _truth_error(DEFAULT_INTEGRATION)
+    before = truth_error(SEED, EFFECT, replace(DEFAULT_INTEGRATION, split_sides=False))
+    after = truth_error(SEED, EFFECT, DEFAULT_INTEGRATION)
     assert max(before) > 1.3
     assert max(after) < 1.05
 

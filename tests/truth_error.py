@@ -1,0 +1,34 @@
+"""Test helper: the library with a reference axis' true parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from isp_twin.identification.cost import rmse
+from isp_twin.identification.measured import MeasuredData
+from isp_twin.identification.read_out import Timing
+from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
+from isp_twin.model.substep_model import Integration
+from isp_twin.reference import design_experiment
+from isp_twin.units import DEG
+
+
+def truth_error(seed: int, effect: str, integration: Integration) -> list[float]:
+    """The sub-stepped model in `integration` with the reference's true rate
+    parameters and effects (axis `seed`, `effect`), at its gyro read-out:
+    RMS error over the gyro sigma per run, in run-name order (heldout,
+    train1, train2)."""
+    exp = design_experiment(seed, effect)
+    truth = exp.truth()
+    regimes = truth["rate_form"]["regimes"]
+    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
+    effects = [EffectSpec(e["name"], e["params"]) for e in truth["effects"]]
+    timing = Timing(0.0, truth["sensors"]["gyro_averaged"])
+    sigma = truth["noise_sigma_deg_s"] * DEG
+    out = []
+    for name, r in sorted(exp.runs.items()):
+        data = [MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])]
+        e = rmse(RateParams.from_vector(x), data, effects=effects, timing=timing,
+                 integration=integration)  # fmt: skip
+        out.append(float(e) / sigma)
+    return out
