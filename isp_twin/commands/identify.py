@@ -102,7 +102,8 @@ def _add_search_options(p) -> None:
         default=Settings.regime_spread,
         metavar="FACTOR",
         help="factor within which the regimes' Tc, Ts-Tc and alpha are expected to "
-        "agree (a weak prior for what the runs leave open; 'none': no prior; "
+        "agree (a weak prior for what the runs leave open, and a restart from the "
+        "other regimes' values for a regime fitted outside it; 'none': neither; "
         f"default {Settings.regime_spread:g})",
     )
 

@@ -21,6 +21,9 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    vector in log variables (`to_z`) with limits from the data
    (`z_limits`), a batched finite-difference Jacobian; then the read-out
    timing (`Timing`) is chosen from the data and the fit refined with it.
+   A regime whose friction shape (b·Tc, b·(Ts-Tc), alpha) ends outside
+   `Settings.regime_spread` of the other regimes' is refined again from
+   theirs (`shape_outliers`), kept where it fits the runs better.
 5. **Global search**, only when the fit is still above
    `Settings.converged_ratio` noise floors (at the noise: the least squares
    restarted once from its own end, `Settings.restart_at_noise`):
@@ -72,10 +75,12 @@ from isp_twin.identification.read_out import TIMINGS, Timing, fitted_with
 from isp_twin.identification.search_space import (
     Z_SPAN,
     FreeParameters,
+    consensus_start,
     free_parameters,
     from_z,
     regime_prior_residuals,
     robust_to_storage,
+    shape_outliers,
     to_z,
     z_limits,
 )
@@ -145,7 +150,8 @@ class Settings:
             quantities (b·Tc, b·(Ts-Tc), alpha) are expected to agree, one
             standard deviation of a weak prior that pulls each toward the
             visited regimes' geometric mean in the least-squares refinement
-            (`regime_prior_residuals`); None: no such prior.
+            (`regime_prior_residuals`), and beyond which a regime's shape
+            is restarted from the others' (`shape_outliers`); None: neither.
     """
 
     seed: int = 0
@@ -293,7 +299,8 @@ def identify(
     """Identify one axis from open-loop runs (all sets in one cost, Eq. 9).
 
     The stages (module doc): free parameters and start (`FreeParameters`),
-    read-out timing and local refinement (`_refine_from_start`), global
+    read-out timing and local refinement (`_refine_from_start`), restarts
+    from the other regimes' friction shape (`_consensus_restarts`), global
     search (`_global_search`), storage rounding (`robust_to_storage`),
     intervals (`_intervals`).
 
@@ -316,6 +323,7 @@ def identify(
     free = free_parameters(data, prior, settings)
     search = _Search(data, free, settings, tuple(prior.effects), progress)
     _refine_from_start(search, prior.rate_params().to_vector()[free.mask])
+    _consensus_restarts(search)
     _global_search(search)
     status = "; ".join(search.status_parts) or "equation-error estimate"
     x_best = from_z(np.clip(search.z_best, search.z_lo, search.z_hi)[None])[0]
@@ -534,6 +542,18 @@ def _refine_from_start(search: _Search, prior_free: np.ndarray) -> None:
     search.status_parts.append(timing.describe())
     search.best_cost = cost_at
     search.keep_better(search.z_best, search.best_cost, "the best point at that timing", "timing")
+
+
+def _consensus_restarts(search: _Search) -> None:
+    """Least squares again from the other regimes' friction shape, for each
+    regime whose shape lies outside `Settings.regime_spread` of theirs
+    (`shape_outliers`, `consensus_start`); a restart is kept only where it
+    fits the runs better (the prior's residuals do not count)."""
+    names = [n for n, v in zip(RATE_LAYOUT.regimes, search.free.visited) if v]
+    for r in shape_outliers(search.z_best, search.s.regime_spread):
+        start = np.clip(consensus_start(search.z_best, r), search.z_lo, search.z_hi)
+        cost = float(search.z_cost(start[None])[0])
+        search.keep_better(start, cost, f"the other regimes' friction shape in {names[r]}")
 
 
 def _global_search(search: _Search) -> None:

@@ -1,0 +1,102 @@
+"""Restarts from the other regimes' friction shape (`shape_outliers`,
+`consensus_start`; docs/identification.md "Stop 39").
+
+Reference clean seed 107 is the axis that shaped the stage: the least
+squares settled regime L- on a nearly linear Stribeck curve (alpha 300x
+below the other regimes') at 1.07/1.01 noise floors on the training runs,
+and its breakaway, which no training run tests, at 45 % of the truth: 10.5
+floors held out. The test below pins that axis; it does not validate the
+stage (the benchmark in the docs does, on other seeds).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from isp_twin.cli import main
+from isp_twin.identification.search_space import (
+    PRIOR_FIELDS,
+    consensus_start,
+    shape_outliers,
+)
+from isp_twin.model.parameters import RATE_LAYOUT
+from isp_twin.units import DEG
+
+N = RATE_LAYOUT.n_fields
+
+
+def _table(shapes):
+    """Search variables of len(shapes) regimes: pole, gain fixed, the
+    friction fields (`PRIOR_FIELDS`) from `shapes` (natural values)."""
+    t = np.zeros((len(shapes), N))
+    t[:, 0], t[:, 1] = np.log(0.02), np.log(1e-4)
+    t[:, list(PRIOR_FIELDS)] = np.log(np.asarray(shapes, float))
+    return t
+
+
+def test_regimes_within_the_spread_get_no_restart():
+    t = _table([[1.0, 1.0, 1.0], [2.0, 0.6, 1.5], [0.5, 1.4, 2.5], [1.2, 2.0, 0.5]])
+    assert shape_outliers(t.ravel(), 3.0) == []
+
+
+def test_one_far_field_makes_its_regime_an_outlier_and_only_it():
+    # The median of the others: the outlier does not drag the other regimes
+    # outside the spread, as the others' mean would (log mean of alpha with
+    # a 1e-3 outlier: a factor 5.6 below the rest).
+    t = _table([[1.0, 1.0, 1.0], [1.1, 0.9, 1.2], [0.9, 1.1, 0.8], [1.0, 1.0, 1e-3]])
+    assert shape_outliers(t.ravel(), 3.0) == [3]
+    assert shape_outliers(t.ravel(), 2000.0) == []
+
+
+def test_the_restart_takes_the_others_median_and_keeps_the_rest():
+    t = _table([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [7.0, 8.0, 9.0], [1e-3, 1e3, 1e-3]])
+    start = consensus_start(t.ravel(), 3).reshape(-1, N)
+    np.testing.assert_allclose(np.exp(start[3, list(PRIOR_FIELDS)]), [4.0, 5.0, 6.0])
+    np.testing.assert_array_equal(start[:3], t[:3])
+    np.testing.assert_array_equal(start[3, :2], t[3, :2])
+
+
+def test_two_regimes_restart_from_each_other():
+    t = _table([[1.0, 1.0, 1.0], [1.0, 1.0, 10.0]])
+    assert shape_outliers(t.ravel(), 3.0) == [0, 1]
+    np.testing.assert_allclose(consensus_start(t.ravel(), 0), t[[1, 1]].ravel())
+
+
+def test_no_spread_or_one_regime_gets_no_restart():
+    far = _table([[1.0, 1.0, 1.0], [1.0, 1.0, 1e-4]]).ravel()
+    assert shape_outliers(far, None) == []
+    assert shape_outliers(far[:N], 3.0) == []
+
+
+@pytest.fixture(scope="module")
+def clean_107(tmp_path_factory):
+    """`identify` with defaults on reference clean seed 107, judged held out."""
+    d = tmp_path_factory.mktemp("clean107")
+    argv = ["generate", "--reference", "--seed", "107", "--effect", "none", "--out", str(d)]
+    assert main(argv + ["--quiet"]) == 0
+    js = d / "id.json"
+    argv = ["identify", str(d / "train1.csv"), str(d / "train2.csv"), "--out", str(d / "p.yaml")]
+    argv += ["--validate", str(d / "heldout.csv"), "--json", str(js), "--quiet", "--no-report"]
+    assert main(argv) == 0
+    return json.loads(js.read_text()), yaml.safe_load((d / "truth.yaml").read_text())
+
+
+def test_a_regime_left_on_a_linear_stribeck_curve_is_restarted_to_the_noise(clean_107):
+    result, truth = clean_107
+    assert "friction shape in L-" in result["status"]
+    per_set = result["verdict"]["per_set"]
+    assert per_set["heldout"]["role"] == "held_out"
+    assert all(s["rmse_over_noise_floor"] <= 1.5 for s in per_set.values())
+
+
+def test_the_untested_breakaway_comes_from_the_restart_near_the_truth(clean_107):
+    # L-'s breakaway b·Ts [deg/s per sample] within 10 % of the truth's;
+    # before the stage it was 45 % of it.
+    result, truth = clean_107
+    p = result["parameters"]["L-"]
+    true_static = truth["rate_form"]["regimes"]["L-"]["static"] / DEG
+    assert p["b"] * p["Ts"] == pytest.approx(true_static, rel=0.10)
