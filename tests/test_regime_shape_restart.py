@@ -39,11 +39,18 @@ def _table(shapes):
 
 
 def test_regimes_within_the_spread_get_no_restart():
-    t = _table([[1.0, 1.0, 1.0], [2.0, 0.6, 1.5], [0.5, 1.4, 2.5], [1.2, 2.0, 0.5]])
+    t = _table([[1.0, 1.0, 1.0], [2.0, 0.6, 1.5], [0.5, 1.4, 2.5], [1.2, 2.0, 0.6]])
     assert shape_outliers(t.ravel(), 3.0) == []
 
 
-def test_one_far_field_makes_its_regime_an_outlier_and_only_it():
+def test_levels_apart_alone_make_no_outlier():
+    # A torque offset splits the Coulomb levels of the two directions; a
+    # Ts/Tc near 1 makes b·(Ts-Tc) differ by decades: alpha alone decides.
+    t = _table([[0.2, 1e-3, 1.0], [5.0, 1.0, 1.1], [0.2, 1.0, 0.9], [5.0, 1e-3, 1.0]])
+    assert shape_outliers(t.ravel(), 3.0) == []
+
+
+def test_a_far_alpha_makes_its_regime_an_outlier_and_only_it():
     # The median of the others: the outlier does not drag the other regimes
     # outside the spread, as the others' mean would (log mean of alpha with
     # a 1e-3 outlier: a factor 5.6 below the rest).

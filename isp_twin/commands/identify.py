@@ -103,7 +103,8 @@ def _add_search_options(p) -> None:
         metavar="FACTOR",
         help="factor within which the regimes' Tc, Ts-Tc and alpha are expected to "
         "agree (a weak prior for what the runs leave open, and a restart from the "
-        "other regimes' values for a regime fitted outside it; 'none': neither; "
+        "other regimes' values for a regime whose alpha is fitted outside it; "
+        "'none': neither; "
         f"default {Settings.regime_spread:g})",
     )
 

@@ -21,9 +21,9 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    vector in log variables (`to_z`) with limits from the data
    (`z_limits`), a batched finite-difference Jacobian; then the read-out
    timing (`Timing`) is chosen from the data and the fit refined with it.
-   A regime whose friction shape (b·Tc, b·(Ts-Tc), alpha) ends outside
-   `Settings.regime_spread` of the other regimes' is refined again from
-   theirs (`shape_outliers`), kept where it fits the runs better.
+   A regime whose Stribeck decay alpha ends outside `Settings.regime_spread`
+   of the other regimes' is refined again from their friction shape (b·Tc,
+   b·(Ts-Tc), alpha; `shape_outliers`), kept where it fits the runs better.
 5. **Global search**, only when the fit is still above
    `Settings.converged_ratio` noise floors (at the noise: the least squares
    restarted once from its own end, `Settings.restart_at_noise`):
@@ -150,8 +150,9 @@ class Settings:
             quantities (b·Tc, b·(Ts-Tc), alpha) are expected to agree, one
             standard deviation of a weak prior that pulls each toward the
             visited regimes' geometric mean in the least-squares refinement
-            (`regime_prior_residuals`), and beyond which a regime's shape
-            is restarted from the others' (`shape_outliers`); None: neither.
+            (`regime_prior_residuals`), and beyond which a regime's alpha
+            has its shape restarted from the others' (`shape_outliers`);
+            None: neither.
     """
 
     seed: int = 0
@@ -546,7 +547,7 @@ def _refine_from_start(search: _Search, prior_free: np.ndarray) -> None:
 
 def _consensus_restarts(search: _Search) -> None:
     """Least squares again from the other regimes' friction shape, for each
-    regime whose shape lies outside `Settings.regime_spread` of theirs
+    regime whose alpha lies outside `Settings.regime_spread` of theirs
     (`shape_outliers`, `consensus_start`); a restart is kept only where it
     fits the runs better (the prior's residuals do not count)."""
     names = [n for n, v in zip(RATE_LAYOUT.regimes, search.free.visited) if v]
