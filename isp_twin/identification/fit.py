@@ -78,6 +78,8 @@ from isp_twin.identification.search_space import (
     consensus_start,
     free_parameters,
     from_z,
+    linear_stribeck,
+    opened_stribeck,
     regime_prior_residuals,
     robust_to_storage,
     shape_outliers,
@@ -325,6 +327,7 @@ def identify(
     search = _Search(data, free, settings, tuple(prior.effects), progress)
     _refine_from_start(search, prior.rate_params().to_vector()[free.mask])
     _consensus_restarts(search)
+    _opened_stribeck_restart(search)
     _global_search(search)
     status = "; ".join(search.status_parts) or "equation-error estimate"
     x_best = from_z(np.clip(search.z_best, search.z_lo, search.z_hi)[None])[0]
@@ -377,7 +380,8 @@ class _Search:
         self.target = s.converged_ratio * self.noise
         u_peak = max(float(np.max(np.abs(d.u))) for d in data)
         speed = float(np.sqrt(np.mean(np.concatenate([d.omega for d in data]) ** 2)))
-        self.z_lo, self.z_hi = z_limits(free.x0, u_peak, max(speed, 1e-9))
+        self.speed = max(speed, 1e-9)  # the runs' RMS rate [rad/s]
+        self.z_lo, self.z_hi = z_limits(free.x0, u_peak, self.speed)
         self.cache: dict[str, np.ndarray] = {}
         self.prior = regime_prior_residuals(int(free.visited.sum()), s.regime_spread, self.noise)
         self.starts: list[np.ndarray] = [to_z(free.x0)]
@@ -555,6 +559,20 @@ def _consensus_restarts(search: _Search) -> None:
         start = np.clip(consensus_start(search.z_best, r), search.z_lo, search.z_hi)
         cost = float(search.z_cost(start[None])[0])
         search.keep_better(start, cost, f"the other regimes' friction shape in {names[r]}")
+
+
+def _opened_stribeck_restart(search: _Search) -> None:
+    """Least squares again with the Stribeck curve opened in each regime
+    where it is a straight line over the runs' speeds (`linear_stribeck`,
+    `opened_stribeck`); kept only where it fits the runs better."""
+    linear = linear_stribeck(search.z_best, search.speed)
+    if not linear:
+        return
+    start = np.clip(opened_stribeck(search.z_best, linear, search.speed), search.z_lo, search.z_hi)
+    cost = float(search.z_cost(start[None])[0])
+    names = [n for n, v in zip(RATE_LAYOUT.regimes, search.free.visited) if v]
+    label = f"the Stribeck curve opened in {', '.join(names[r] for r in linear)}"
+    search.keep_better(start, cost, label)
 
 
 def _global_search(search: _Search) -> None:
