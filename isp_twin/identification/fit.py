@@ -23,7 +23,9 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    timing (`Timing`) is chosen from the data and the fit refined with it.
    A regime whose Stribeck decay alpha ends outside `Settings.regime_spread`
    of the other regimes' is refined again from their friction shape (b·Tc,
-   b·(Ts-Tc), alpha; `shape_outliers`), kept where it fits the runs better.
+   b·(Ts-Tc), alpha; `shape_outliers`), kept where it fits the runs better;
+   then the regimes whose Stribeck curve is a straight line over the runs'
+   speeds, with the curve opened (`linear_stribeck`), kept likewise.
 5. **Global search**, only when the fit is still above
    `Settings.converged_ratio` noise floors (at the noise: the least squares
    restarted once from its own end, `Settings.restart_at_noise`):
@@ -303,7 +305,8 @@ def identify(
 
     The stages (module doc): free parameters and start (`FreeParameters`),
     read-out timing and local refinement (`_refine_from_start`), restarts
-    from the other regimes' friction shape (`_consensus_restarts`), global
+    from the other regimes' friction shape (`_consensus_restarts`) and
+    with a straight Stribeck curve opened (`_opened_stribeck_restart`), global
     search (`_global_search`), storage rounding (`robust_to_storage`),
     intervals (`_intervals`).
 

@@ -80,9 +80,12 @@ def from_z(z: np.ndarray) -> np.ndarray:
     return x.reshape(z.shape)
 
 
+#: Columns of a regime's row of `to_z`: log b·Tc, log b·(Ts-Tc), log alpha.
+_COULOMB, _GAP, _ALPHA = 2, 3, 4
+
 #: The fields of `to_z` the regime prior ties together (`regime_prior_residuals`):
 #: log b·Tc, log b·(Ts-Tc), log alpha.
-PRIOR_FIELDS = (2, 3, 4)
+PRIOR_FIELDS = (_COULOMB, _GAP, _ALPHA)
 
 
 def regime_prior_residuals(n_regimes: int, spread: float | None, noise: float) -> np.ndarray:
@@ -145,10 +148,6 @@ def shape_outliers(z: np.ndarray, spread: float | None) -> list[int]:
     ]
 
 
-#: The search variable log alpha in a regime's row of `to_z`.
-_ALPHA = 4
-
-
 def consensus_start(z: np.ndarray, r: int) -> np.ndarray:
     """`z` (5k,) with regime r's `PRIOR_FIELDS` set to the median of the other
     regimes' (one outlier among the others does not move it, as it would a
@@ -179,9 +178,9 @@ def linear_stribeck(z: np.ndarray, speed: float) -> list[int]:
     Stribeck gap b·(Ts-Tc) acts as a negative viscous term and trades
     against the pole and b·Tc, and the least squares can close it. All four
     regimes of reference clean seed 126 (a 0.73 s axis) ended with Ts = Tc
-    and alpha·|w|rms 0.07 (the truth: Ts/Tc 2.4, alpha·|w|rms 30): 1.03
-    noise floors on training, 5.9 held out; with the curve opened, 1.00
-    and 1.38.
+    and alpha·|w|rms 0.07 (the truth: Ts/Tc 2.3-2.5, alpha·|w|rms 28-34):
+    1.01/1.04 noise floors on the training runs, 5.9 held out; with the
+    curve opened, 0.99/1.02 and 1.33.
     """
     table = np.asarray(z, float).reshape(-1, RATE_LAYOUT.n_fields)
     return [r for r in range(len(table)) if np.exp(table[r, _ALPHA]) * speed < LINEAR_STRIBECK]
@@ -193,7 +192,7 @@ def opened_stribeck(z: np.ndarray, regimes: Sequence[int], speed: float) -> np.n
     Coulomb level at 0) and alpha to `OPENED_ALPHA_SPEED` / `speed`."""
     table = np.asarray(z, float).reshape(-1, RATE_LAYOUT.n_fields).copy()
     for r in regimes:
-        table[r, 3] = table[r, 2]
+        table[r, _GAP] = table[r, _COULOMB]
         table[r, _ALPHA] = np.log(OPENED_ALPHA_SPEED / speed)
     return table.ravel()
 
