@@ -492,6 +492,11 @@ class _Search:
         if refined or stage:
             self.record("refine" if refined else stage)
 
+    def restart(self, start: np.ndarray, label: str) -> None:
+        """`keep_better` from `start` (search variables), clipped to their limits."""
+        start = np.clip(start, self.z_lo, self.z_hi)
+        self.keep_better(start, float(self.z_cost(start[None])[0]), label)
+
     def best_timing(self, z: np.ndarray, options=TIMINGS) -> tuple[Timing, float]:
         """The read-out timing of `options` with the lowest cost at z, and that cost.
 
@@ -557,11 +562,11 @@ def _consensus_restarts(search: _Search) -> None:
     regime whose alpha lies outside `Settings.regime_spread` of theirs
     (`shape_outliers`, `consensus_start`); a restart is kept only where it
     fits the runs better (the prior's residuals do not count)."""
-    names = [n for n, v in zip(RATE_LAYOUT.regimes, search.free.visited) if v]
     for r in shape_outliers(search.z_best, search.s.regime_spread):
-        start = np.clip(consensus_start(search.z_best, r), search.z_lo, search.z_hi)
-        cost = float(search.z_cost(start[None])[0])
-        search.keep_better(start, cost, f"the other regimes' friction shape in {names[r]}")
+        name = search.free.visited_names[r]
+        search.restart(
+            consensus_start(search.z_best, r), f"the other regimes' friction shape in {name}"
+        )
 
 
 def _opened_stribeck_restart(search: _Search) -> None:
@@ -569,13 +574,10 @@ def _opened_stribeck_restart(search: _Search) -> None:
     where it is a straight line over the runs' speeds (`linear_stribeck`,
     `opened_stribeck`); kept only where it fits the runs better."""
     linear = linear_stribeck(search.z_best, search.speed)
-    if not linear:
-        return
-    start = np.clip(opened_stribeck(search.z_best, linear, search.speed), search.z_lo, search.z_hi)
-    cost = float(search.z_cost(start[None])[0])
-    names = [n for n, v in zip(RATE_LAYOUT.regimes, search.free.visited) if v]
-    label = f"the Stribeck curve opened in {', '.join(names[r] for r in linear)}"
-    search.keep_better(start, cost, label)
+    if linear:
+        names = ", ".join(search.free.visited_names[r] for r in linear)
+        start = opened_stribeck(search.z_best, linear, search.speed)
+        search.restart(start, f"the Stribeck curve opened in {names}")
 
 
 def _global_search(search: _Search) -> None:

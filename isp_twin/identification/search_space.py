@@ -118,8 +118,8 @@ def shape_outliers(z: np.ndarray, spread: float | None) -> list[int]:
 
     `z`: a point in the search variables of k visited regimes (5k,). A
     regime is listed (by its index among the visited) when its log alpha is
-    more than log(`spread`) from the median of the other regimes' log alpha
-    (`consensus_start`). None for a `spread` or one regime.
+    more than log(`spread`) from the median of the other regimes' log alpha.
+    None for a `spread` or one regime.
 
     Least squares can settle a regime in a valley the regime prior
     (`regime_prior_residuals`) is too weak to lift it out of: a small alpha
@@ -140,11 +140,11 @@ def shape_outliers(z: np.ndarray, spread: float | None) -> list[int]:
     table = np.asarray(z, float).reshape(-1, RATE_LAYOUT.n_fields)
     if spread is None or len(table) < 2:
         return []
-    i = PRIOR_FIELDS.index(_ALPHA)
+    alpha = table[:, _ALPHA]
     return [
         r
         for r in range(len(table))
-        if abs(table[r, _ALPHA] - _others_median(table, r)[i]) > np.log(spread)
+        if abs(alpha[r] - np.median(np.delete(alpha, r))) > np.log(spread)
     ]
 
 
@@ -289,6 +289,11 @@ class FreeParameters:
     visited: np.ndarray
     mask: np.ndarray
     base: np.ndarray
+
+    @property
+    def visited_names(self) -> list[str]:
+        """The visited regimes' names, in the order of the free quantities."""
+        return [n for n, v in zip(RATE_LAYOUT.regimes, self.visited) if v]
 
     @property
     def x0(self) -> np.ndarray:
