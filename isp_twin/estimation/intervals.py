@@ -35,11 +35,15 @@ class Intervals:
             the noise floor's square (so noise-free data does not make
             every parameter determined), (n,).
         rho: the residuals' lag-1 correlation inside the runs [1].
+        covariance: the parameters' covariance the half-widths come from,
+            (n, n), the parameters' unit squared (without the t quantile);
+            NaN in the rows and columns of a parameter not determined.
     """
 
     half_width: np.ndarray
     at_floor: np.ndarray
     rho: float
+    covariance: np.ndarray
 
 
 def lag1_correlation(resid: np.ndarray, breaks: Sequence[int]) -> float:
@@ -72,7 +76,7 @@ def confidence_intervals(
 
     m, p = jac.shape
     if p == 0:
-        return Intervals(np.zeros(0), np.zeros(0), 0.0)
+        return Intervals(np.zeros(0), np.zeros(0), 0.0, np.zeros((0, 0)))
     s2 = float(resid @ resid) / max(m - p, 1)
     rho = lag1_correlation(resid, breaks)
     inflate = (1 + rho) / (1 - rho) if 0 < rho < 1 else 1.0
@@ -95,4 +99,6 @@ def confidence_intervals(
     var[blind] = np.nan
     half = q * np.sqrt(s2 * inflate * var)
     at_floor = q * np.sqrt(max(s2, floor**2) * inflate * var)
-    return Intervals(half, at_floor, float(rho))
+    cov = s2 * inflate * inv / np.outer(norm, norm)
+    cov[blind, :] = cov[:, blind] = np.nan
+    return Intervals(half, at_floor, float(rho), cov)

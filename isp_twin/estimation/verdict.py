@@ -24,6 +24,7 @@ __all__ = [
     "FLOOR_DIFFERENCE",
     "SCALE_DIFFERENCE",
     "FitVerdict",
+    "HeldOutSpread",
     "fit_verdict",
     "json_safe",
     "noise_floor_of",
@@ -73,6 +74,68 @@ def noise_floor_of(rates: Sequence[np.ndarray], order: int = FLOOR_DIFFERENCE) -
 
 
 @dataclass(frozen=True)
+class HeldOutSpread:
+    """What the training runs leave open on one held-out run: its RMS error
+    over its noise floor at the models the training runs cannot tell from
+    the fit (`isp_twin.identification.held_out_spread`).
+
+    Attributes:
+        run: the held-out run's name.
+        low, median, high: the error over the floor at the 5 %, 50 % and
+            95 % quantiles over those models [noise floors]; NaN where too
+            few drawn models fit the training runs to read them.
+        allowed: how many of the `draws` the training runs allow (the fit
+            itself among them).
+        draws: the parameter sets drawn, the fit included.
+    """
+
+    run: str
+    low: float
+    median: float
+    high: float
+    allowed: int
+    draws: int
+
+    @property
+    def open(self) -> bool:
+        """Some models the training runs allow meet this run within
+        `CONVERGED_RATIO` noise floors and some do not: the training runs do
+        not determine what it depends on."""
+        return self.low <= CONVERGED_RATIO < self.high
+
+    def line(self) -> str:
+        if not math.isfinite(self.high):
+            return (
+                f"  {self.run}: too few of the models drawn around the fit fit the training "
+                f"runs ({self.allowed} of {self.draws}) to read what they leave open"
+            )
+        return (
+            f"  {self.run}: the models the training runs allow ({self.allowed} of "
+            f"{self.draws} drawn) read {self.low:.2f}-{self.high:.2f} x its noise floor "
+            f"(5-95 %, median {self.median:.2f})"
+        )
+
+    def sentence(self) -> str:
+        """The advice's opening where the run is `open`."""
+        return (
+            f"The training runs do not determine what {self.run} depends on: the models "
+            f"they allow read {self.low:.2f}-{self.high:.2f} x its noise floor there; train "
+            f"with runs like it (its speeds and breakaways), or judge on runs like the "
+            f"training runs. "
+        )
+
+    def to_json(self) -> dict:
+        return {
+            "run": self.run,
+            "rmse_over_noise_floor_p05": self.low,
+            "rmse_over_noise_floor_p50": self.median,
+            "rmse_over_noise_floor_p95": self.high,
+            "draws_allowed": self.allowed,
+            "draws": self.draws,
+        }
+
+
+@dataclass(frozen=True)
 class FitVerdict:
     """A fit's errors over the noise floor.
 
@@ -84,6 +147,8 @@ class FitVerdict:
         advice: what to try when not converged ("" when converged).
         beyond: the regimes where the held-out sets reach speeds the
             training sets do not (`isp_twin.estimation.coverage.beyond_training`).
+        spread: per held-out set, its error at the models the training
+            sets allow (`HeldOutSpread`; identify's verdict).
     """
 
     rmse: Mapping[str, float]
@@ -92,6 +157,7 @@ class FitVerdict:
     converged: bool
     advice: str
     beyond: tuple[RegimeReach, ...] = ()
+    spread: tuple[HeldOutSpread, ...] = ()
 
     def ratio(self, name: str) -> float:
         floor = self.noise_floor[name]
@@ -110,6 +176,7 @@ class FitVerdict:
                 f"  {name} ({role}): RMS error {self.rmse[name] / DEG:.4g} deg/s = "
                 f"{self.ratio(name):.2f} x the noise floor {self.noise_floor[name] / DEG:.3g} deg/s"
             )
+        out += [s.line() for s in self.spread]
         if self.converged:
             out.append(f"converged: every set within {CONVERGED_RATIO:g} x its noise floor")
         else:
@@ -138,6 +205,7 @@ class FitVerdict:
             },
             "advice": self.advice,
             "held_out_beyond_training": [b.to_json() for b in self.beyond],
+            "held_out_spread": [json_safe(s.to_json()) for s in self.spread],
         }
 
 
@@ -147,15 +215,26 @@ def fit_verdict(
     held_out: Sequence[str] = (),
     advice: str = "",
     beyond: Sequence[RegimeReach] = (),
+    spread: Sequence[HeldOutSpread] = (),
 ) -> FitVerdict:
     """Judge per-set RMS errors [rad/s] against per-set noise floors [rad/s];
-    where not converged, the advice opens with the regimes `beyond` the
-    training speeds (`reach_sentence`)."""
-    ratios = [rmse[n] / noise_floor[n] if noise_floor[n] > 0 else math.inf for n in rmse]
-    converged = bool(ratios) and all(r <= CONVERGED_RATIO for r in ratios)
-    said = "" if converged else reach_sentence(beyond) + advice
+    where not converged, the advice opens with the held-out sets the
+    training sets leave open (`HeldOutSpread.open`, of those above the
+    limit) and the regimes `beyond` the training speeds (`reach_sentence`)."""
+    ratios = {n: rmse[n] / noise_floor[n] if noise_floor[n] > 0 else math.inf for n in rmse}
+    converged = bool(ratios) and all(r <= CONVERGED_RATIO for r in ratios.values())
+    undetermined = "".join(
+        s.sentence() for s in spread if s.open and ratios.get(s.run, 0.0) > CONVERGED_RATIO
+    )
+    said = "" if converged else undetermined + reach_sentence(beyond) + advice
     return FitVerdict(
-        dict(rmse), dict(noise_floor), tuple(held_out), converged, said, tuple(beyond)
+        dict(rmse),
+        dict(noise_floor),
+        tuple(held_out),
+        converged,
+        said,
+        tuple(beyond),
+        tuple(spread),
     )
 
 

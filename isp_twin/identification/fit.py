@@ -25,7 +25,10 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    of the other regimes' is refined again from their friction shape (b·Tc,
    b·(Ts-Tc), alpha; `shape_outliers`), kept where it fits the runs better;
    then the regimes whose Stribeck curve is a straight line over the runs'
-   speeds, with the curve opened (`linear_stribeck`), kept likewise.
+   speeds, with the curve opened (`linear_stribeck`), kept likewise; then,
+   where the fit is judged at the noise but above `NEAR_NOISE` floors,
+   from each regime's alpha stepped up and down (`stepped_alpha`), kept
+   likewise.
 5. **Global search**, only when the fit is still above
    `Settings.converged_ratio` noise floors (at the noise: the least squares
    restarted once from its own end, `Settings.restart_at_noise`):
@@ -67,7 +70,7 @@ from enum import Enum
 import numpy as np
 
 from isp_twin.errors import DataError, ParameterError
-from isp_twin.estimation.intervals import confidence_intervals
+from isp_twin.estimation.intervals import Intervals, confidence_intervals
 from isp_twin.estimation.least_squares import FitStatus, trust_region
 from isp_twin.estimation.parameter_file import fitted_axis
 from isp_twin.estimation.simulation_error import RunStack
@@ -146,6 +149,8 @@ class Settings:
             clean seed 15, regime R- (alpha 0.49 s/rad, the truth 72), 1.04
             noise floors on training where the truth reaches 1.00, 3.2 held
             out; restarted 0.99 and 1.16 (docs/identification.md "Stop 26").
+            Above `NEAR_NOISE` floors each regime's alpha is also stepped
+            (`_stepped_alpha_restarts`).
         prior_in_search: also start from the prior's values (by default the
             prior only supplies b, unvisited regimes and held effects).
         timing: the data's read-out timing (`Timing`); None: the one of
@@ -260,6 +265,10 @@ class IdentificationResult:
         integration: how the fitted model integrates a sample (`Integration`).
         outcome: how the search ended (`IdentificationStatus`).
         log: per-iteration log, one `SearchStep` per `history` entry.
+        covariance: the covariance of the free quantities (the visited
+            regimes' entries of the rate vector, in its order), (n_free,
+            n_free), the intervals' (step 6) without their t quantile; NaN
+            where not determined. Empty when not computed.
     """
 
     rate: RateParams
@@ -282,6 +291,7 @@ class IdentificationResult:
     integration: Integration = DEFAULT_INTEGRATION
     outcome: IdentificationStatus = IdentificationStatus.NOT_AT_NOISE
     log: tuple[SearchStep, ...] = ()
+    covariance: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     @property
     def vector(self) -> np.ndarray:
@@ -314,7 +324,8 @@ def identify(
     The stages (module doc): free parameters and start (`FreeParameters`),
     read-out timing and local refinement (`_refine_from_start`), restarts
     from the other regimes' friction shape (`_consensus_restarts`) and
-    with a straight Stribeck curve opened (`_opened_stribeck_restart`), global
+    with a straight Stribeck curve opened (`_opened_stribeck_restart`) and
+    from each regime's alpha stepped (`_stepped_alpha_restarts`), global
     search (`_global_search`), storage rounding (`robust_to_storage`),
     intervals (`_intervals`).
 
@@ -656,11 +667,12 @@ def _global_search(search: _Search) -> None:
 
 def _intervals(
     search: _Search, x_best: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, Intervals]:
     """Confidence half-widths and identifiability at the stored point (module doc, step 6).
 
     Returns the residuals there (M,), ci95 and identifiable over the full
-    rate vector (`RATE_LAYOUT.size`,), and the residuals' lag-1 correlation.
+    rate vector (`RATE_LAYOUT.size`,), and the free quantities' `Intervals`
+    (their lag-1 correlation and covariance).
     """
     data, mask = search.data, search.free.mask
     h = 1e-6 * np.maximum(np.abs(x_best), 1e-9)
@@ -674,7 +686,7 @@ def _intervals(
     sensitive = np.linalg.norm(j, axis=0) > 0
     ident[mask] = sensitive & (iv.at_floor < _MAX_RELATIVE_CI * np.abs(x_best))
     ci[mask] = np.where(ident[mask], iv.half_width, np.nan)
-    return e, ci, ident, iv.rho
+    return e, ci, ident, iv
 
 
 def _outcome(search: _Search, cost: float) -> IdentificationStatus:
@@ -693,7 +705,7 @@ def _result(
 ) -> IdentificationResult:
     """The `IdentificationResult` at the stored point `x_best` (n_free,)."""
     s = search.s
-    e, ci, ident, rho = _intervals(search, x_best)
+    e, ci, ident, iv = _intervals(search, x_best)
     rate = RateParams.from_vector(free.full(x_best).to_vector()[0])
     rmse_train = {
         d.name: float(
@@ -720,7 +732,7 @@ def _result(
         cost=cost,
         history=tuple(search.history),
         initial_cost=search.initial_cost,
-        rho=rho,
+        rho=iv.rho,
         evaluations=search.evaluations,
         wall_time_s=wall_time_s,
         status=status,
@@ -731,6 +743,7 @@ def _result(
         integration=s.integration,
         outcome=_outcome(search, cost),
         log=tuple(search.log),
+        covariance=iv.covariance,
     )
 
 

@@ -17,6 +17,7 @@ from isp_twin.estimation.simulation_error import stack_runs
 from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
 from isp_twin.identification.cost import rmse, simulate_data
 from isp_twin.identification.fit import IdentificationResult
+from isp_twin.identification.held_out_spread import held_out_spread
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.effects.resonance import Resonance
@@ -98,12 +99,13 @@ def identification_verdict(
         noise_floor_of([d.omega for d in train]),
     )
     names = [d.name for d in validation]
-    verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond)
+    spread = held_out_spread(result, train, validation)
+    verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond, spread)
     if verdict.converged or any(e.name == "resonance" for e in result.effects):
         return verdict
     # Only a fit that has not converged gets advice: the runs are stacked
     # for the hint only then (a long log costs a stack of its length).
-    return fit_verdict(rmse_all, floors, names, payload_hint(train) + ADVICE, beyond)
+    return fit_verdict(rmse_all, floors, names, payload_hint(train) + ADVICE, beyond, spread)
 
 
 def payload_hint(runs: Sequence[MeasuredData]) -> str:
