@@ -1,10 +1,13 @@
 """Test helper: reference runs identified and diagnosed as a user runs
 `isp-twin identify` (defaults, on train1 and train2) and then `diagnose`
-(with the held-out run)."""
+(with the held-out run); or identified alone, judged on the held-out run."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
+
+import yaml
 
 from isp_twin.cli import main
 from isp_twin.diagnosis.result import Diagnosis
@@ -33,3 +36,25 @@ def identified_then_diagnosed(
         candidates=candidates,
         max_rounds=max_rounds,
     )
+
+
+def identified_reference(folder: Path, seed: int) -> tuple[dict, dict]:
+    """`isp-twin generate --reference --seed seed` (clean) into `folder`, then
+    `isp-twin identify` with defaults on train1 and train2, the held-out run
+    given to --validate: (its --json content, the truth.yaml content)."""
+    argv = [
+        "generate",
+        "--reference",
+        "--seed",
+        str(seed),
+        "--effect",
+        "none",
+        "--out",
+        str(folder),
+    ]
+    assert main(argv + ["--quiet"]) == 0
+    js = folder / "id.json"
+    argv = ["identify", str(folder / "train1.csv"), str(folder / "train2.csv")]
+    argv += ["--out", str(folder / "p.yaml"), "--validate", str(folder / "heldout.csv")]
+    assert main(argv + ["--json", str(js), "--quiet", "--no-report"]) == 0
+    return json.loads(js.read_text()), yaml.safe_load((folder / "truth.yaml").read_text())

@@ -11,13 +11,12 @@ fresh seeds are in the docs.
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pytest
+from identified_runs import identified_reference
 
-from isp_twin.cli import main
 from isp_twin.estimation.verdict import CONVERGED_RATIO, HeldOutSpread, fit_verdict
 from isp_twin.identification.held_out_spread import Z_SD_CAP, parameter_draws
 from isp_twin.identification.search_space import to_z
@@ -72,14 +71,8 @@ def test_the_advice_opens_with_an_open_run_only_above_the_limit():
 
 
 def _identified(tmp_path_factory, seed):
-    d = tmp_path_factory.mktemp(f"spread{seed}")
-    argv = ["generate", "--reference", "--seed", str(seed), "--effect", "none", "--out", str(d)]
-    assert main(argv + ["--quiet"]) == 0
-    js = d / "id.json"
-    argv = ["identify", str(d / "train1.csv"), str(d / "train2.csv"), "--out", str(d / "p.yaml")]
-    argv += ["--validate", str(d / "heldout.csv"), "--json", str(js), "--quiet", "--no-report"]
-    assert main(argv) == 0
-    return json.loads(js.read_text())["verdict"]
+    """The verdict of `identify` with defaults on reference clean seed `seed`."""
+    return identified_reference(tmp_path_factory.mktemp(f"spread{seed}"), seed)[0]["verdict"]
 
 
 def test_a_held_out_run_that_grazes_a_breakaway_is_left_open(tmp_path_factory):

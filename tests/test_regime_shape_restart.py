@@ -14,13 +14,10 @@ validate the stages (the benchmark in the docs does, on other seeds).
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
-import yaml
+from identified_runs import identified_reference
 
-from isp_twin.cli import main
 from isp_twin.identification.search_space import (
     LINEAR_STRIBECK,
     OPENED_ALPHA_SPEED,
@@ -101,14 +98,7 @@ def test_a_regime_whose_curve_is_a_line_over_the_runs_speeds_is_opened():
 
 def _identified(tmp_path_factory, seed):
     """`identify` with defaults on reference clean seed `seed`, judged held out."""
-    d = tmp_path_factory.mktemp(f"clean{seed}")
-    argv = ["generate", "--reference", "--seed", str(seed), "--effect", "none", "--out", str(d)]
-    assert main(argv + ["--quiet"]) == 0
-    js = d / "id.json"
-    argv = ["identify", str(d / "train1.csv"), str(d / "train2.csv"), "--out", str(d / "p.yaml")]
-    argv += ["--validate", str(d / "heldout.csv"), "--json", str(js), "--quiet", "--no-report"]
-    assert main(argv) == 0
-    return json.loads(js.read_text()), yaml.safe_load((d / "truth.yaml").read_text())
+    return identified_reference(tmp_path_factory.mktemp(f"clean{seed}"), seed)
 
 
 def _assert_converged_held_out(result):
