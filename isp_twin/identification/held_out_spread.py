@@ -68,11 +68,11 @@ def parameter_draws(x: np.ndarray, cov: np.ndarray, n: int, seed: int = 0) -> np
     """`n` draws around free quantities `x` (k,) with covariance `cov` (k, k)
     in the rate form's units, drawn in the search variables (`to_z`, the
     covariance carried there by the derivative of `to_z` at x) and mapped
-    back: (n, k). A quantity with a NaN variance (not determined) stays at x;
-    a search variable's deviation is capped at `Z_SD_CAP`.
+    back: (n, k). A quantity with a NaN variance (not determined) gets no
+    spread of its own (it moves only through the search variables it shares,
+    as b·Ts with b·Tc); a search variable's deviation is capped at `Z_SD_CAP`.
     """
     x = np.asarray(x, float)
-    k = x.size
     h = _STEP * np.maximum(np.abs(x), 1e-12)
     t = (to_z(x + np.diag(h)) - to_z(x - np.diag(h))).T / (2 * h)  # dz/dx, (k, k)
     blind = ~np.isfinite(np.diag(cov))
@@ -84,7 +84,7 @@ def parameter_draws(x: np.ndarray, cov: np.ndarray, n: int, seed: int = 0) -> np
     cz = cz * np.outer(cap, cap)
     rng = np.random.default_rng(seed)
     z = rng.multivariate_normal(to_z(x), (cz + cz.T) / 2, size=n, method="eigh")
-    return from_z(z) if k else np.zeros((n, 0))
+    return from_z(z)
 
 
 def _errors(result: IdentificationResult, rates: np.ndarray, runs) -> np.ndarray:
