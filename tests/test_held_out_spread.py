@@ -28,7 +28,7 @@ X = np.array([0.99, 2e-5, 0.012, 0.008, 40.0])
 def test_draws_are_physical_and_centred_on_the_fit():
     cov = np.diag((0.3 * X) ** 2)  # 30 % deviations: a linear draw would cross zero
     draws = parameter_draws(X, cov, 4000, seed=1)
-    assert np.all(draws[:, 0] < 1.0) and np.all(draws[:, 1:] > 0.0)
+    assert np.all((draws[:, 0] >= 0.0) & (draws[:, 0] < 1.0)) and np.all(draws[:, 1:] > 0.0)
     assert np.all(draws[:, 2] >= draws[:, 3])  # Ts >= Tc
     z = to_z(draws)
     np.testing.assert_allclose(np.median(z, axis=0), to_z(X), atol=0.15)  # 4000 draws, sd <= 2.3

@@ -68,7 +68,7 @@ def parameter_draws(x: np.ndarray, cov: np.ndarray, n: int, seed: int = 0) -> np
     """`n` draws around free quantities `x` (k,) with covariance `cov` (k, k)
     in the rate form's units, drawn in the search variables (`to_z`, the
     covariance carried there by the derivative of `to_z` at x) and mapped
-    back: (n, k). A quantity with a NaN variance (not determined) gets no
+    back: (n, k), the pole kept in [0, 1). A quantity with a NaN variance (not determined) gets no
     spread of its own (it moves only through the search variables it shares,
     as b·Ts with b·Tc); a search variable's deviation is capped at `Z_SD_CAP`.
     """
@@ -84,6 +84,9 @@ def parameter_draws(x: np.ndarray, cov: np.ndarray, n: int, seed: int = 0) -> np
     cz = cz * np.outer(cap, cap)
     rng = np.random.default_rng(seed)
     z = rng.multivariate_normal(to_z(x), (cz + cz.T) / 2, size=n, method="eigh")
+    # log(1 - a) <= 0: the pole a stays in [0, 1) (the model's a ** (1/m) has
+    # no real value below 0).
+    z[:, 0 :: RATE_LAYOUT.n_fields] = np.minimum(z[:, 0 :: RATE_LAYOUT.n_fields], 0.0)
     return from_z(z)
 
 
