@@ -31,6 +31,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from isp_twin.estimation.simulation_error import RunStack
 from isp_twin.estimation.verdict import HeldOutSpread, noise_floor_of
 from isp_twin.identification.cost import rmse, run_stack
 from isp_twin.identification.fit import IdentificationResult
@@ -90,10 +91,14 @@ def parameter_draws(x: np.ndarray, cov: np.ndarray, n: int, seed: int = 0) -> np
     return from_z(z)
 
 
-def _errors(result: IdentificationResult, rates: np.ndarray, runs) -> np.ndarray:
-    """RMS error [rad/s] over `runs` together of the full rate vectors `rates` (P, 20)."""
+def _stack(result: IdentificationResult, runs: Sequence[MeasuredData]) -> RunStack:
+    """`runs` stacked as the fit read them (its side source, rest level, timing, integration)."""
     s = result.settings
-    stack = run_stack(runs, s.side_source, s.rest_rate_deg_s, result.timing, result.integration)
+    return run_stack(runs, s.side_source, s.rest_rate_deg_s, result.timing, result.integration)
+
+
+def _errors(result: IdentificationResult, rates: np.ndarray, stack: RunStack) -> np.ndarray:
+    """RMS error [rad/s] over the stacked runs together of the full rate vectors `rates` (P, 20)."""
     out = []
     for lo in range(0, len(rates), CHUNK):
         params = RateParams.from_vector(rates[lo : lo + CHUNK])
@@ -120,10 +125,11 @@ def held_out_spread(
     full = result.rate.to_vector()
     m = sum(len(d) - 1 for d in train)
     rho = result.rho if 0 < result.rho < 1 else 0.0
+    train_stack = _stack(result, train)  # once for every covariance tried
     for scale in SHRINK:
         rates = np.tile(full, (DRAWS + 1, 1))
         rates[1:, mask] = parameter_draws(full[mask], result.covariance * scale, DRAWS, seed)
-        sse = _errors(result, rates, train) ** 2 * m
+        sse = _errors(result, rates, train_stack) ** 2 * m
         variance = sse[0] / max(m - k, 1) * (1 + rho) / (1 - rho)
         allowed = sse - sse[0] <= chi2.ppf(LEVEL, k) * variance
         allowed[0] = True
@@ -134,7 +140,7 @@ def held_out_spread(
     for d in validation:
         quantiles = (np.nan,) * 3
         if n_allowed > MIN_ALLOWED:
-            ratio = _errors(result, rates[allowed], [d]) / noise_floor_of([d.omega])
+            ratio = _errors(result, rates[allowed], _stack(result, [d])) / noise_floor_of([d.omega])
             quantiles = tuple(float(q) for q in np.quantile(ratio, [0.05, 0.5, 0.95]))
         out.append(HeldOutSpread(d.name, *quantiles, n_allowed, DRAWS + 1))
     return tuple(out)
