@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from isp_twin.identification.cost import rmse
+from isp_twin.identification.cost import residuals, rmse
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.identification.side_angle import at_boundary, fused_angle
@@ -82,3 +82,45 @@ def test_a_fast_crossing_through_a_zero_reading_keeps_the_fused_angle():
     u = np.full(1500, -900.0)
     data = _run(u, 0.05, 3)
     assert not at_boundary(data, fused_angle(data)).any()
+
+
+def _geared_axis() -> Axis:
+    # The motor gain differs by side (R+ 0.8, L+ 1.3 of Km), as on reference
+    # clean axis 159: the first steps' side sets the drive of the start.
+    return Axis(
+        0.02,
+        0.2,
+        3e-4,
+        (
+            RegimeFriction(0.15, 0.10, 30.0, 1.0, 0.8),
+            RegimeFriction(0.14, 0.10, 30.0, 1.0, 1.0),
+            RegimeFriction(0.15, 0.11, 30.0, 1.0, 1.3),
+            RegimeFriction(0.16, 0.11, 30.0, 1.0, 1.0),
+        ),
+    )
+
+
+def test_a_run_that_starts_at_rest_on_zero_moves_on_the_side_it_enters():
+    """An Eq. 7-style cosine from rest at angle 0: the resolver reads 0 for
+    fewer than `BOUNDARY_READINGS` samples before the axis leaves it. Over
+    24 seeds the true parameters reach the noise on the start (its first
+    200 samples); with the side read from the sign of the cut fusion
+    window, 7 of them did not (up to 12 sigmas; 2.6 on the whole of a
+    training run of reference clean axis 159)."""
+    form = rate_form(_geared_axis())
+    truth = RateParams.from_vector(
+        np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
+    )
+    sigma = 3e-4  # the rest level 0.1 deg/s is 6 sigmas: every run starts at rest
+    t = np.arange(1000) * 1e-3
+    u = 950.0 * np.cos(2 * np.pi * 1.0 * t)
+    sensors = Sensors(gyro_noise_rad_s=sigma, gyro_averaged=True, resolver_bits=15)
+    for seed in range(24):
+        r = simulate(_geared_axis(), u, sensors=sensors, theta0_rad=0.0, seed=seed)
+        data = MeasuredData("run", r.t, r.u, r.omega, r.theta, None, 1e-3)
+        opening = int(np.flatnonzero(r.theta != 0.0)[0])
+        assert 1 < opening < 10  # a start shorter than the rule for rests
+        assert at_boundary(data, fused_angle(data), opening=True)[:opening].all()
+        e = residuals(truth, [data], timing=Timing(0.0, True))[:200]
+        err = float(np.sqrt(np.mean(e**2))) / sigma
+        assert err < 1.3, (seed, err)

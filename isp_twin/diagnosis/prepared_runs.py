@@ -293,7 +293,7 @@ def fused_runs(runs, timing: Timing, integration: Integration) -> list:
     """The runs with the fused angle as their side angle, its half-plane
     read at `timing`'s shift (a fraction of a step, over the sub-steps)."""
     shift = timing.side_shift / integration.substeps
-    return [with_side_angle(r, "measured", shift) for r in runs]
+    return [with_side_angle(r, "measured", shift, integration.opens_on_boundary) for r in runs]
 
 
 def stacked(

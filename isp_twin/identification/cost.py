@@ -40,7 +40,7 @@ def run_stack(
     `side_source` angle read at `timing`, every sample after the first
     counted, a first rate within `rest_rate_deg_s` [deg/s] taken as rest."""
     shift = timing.side_shift / integration.substeps
-    runs = [with_side_angle(d, side_source, shift) for d in data]
+    runs = [with_side_angle(d, side_source, shift, integration.opens_on_boundary) for d in data]
     return stack_runs(
         runs,
         warmup=1,

@@ -88,7 +88,9 @@ def _odd_window(window: int, n: int) -> int:
     return max(1, min(window, n if n % 2 else n - 1))
 
 
-def at_boundary(data: MeasuredData, fused: np.ndarray, window: int = FUSION_WINDOW) -> np.ndarray:
+def at_boundary(
+    data: MeasuredData, fused: np.ndarray, window: int = FUSION_WINDOW, opening: bool = False
+) -> np.ndarray:
     """Samples of an axis at rest on the boundary between the half-planes,
     bool shape (N,).
 
@@ -101,6 +103,22 @@ def at_boundary(data: MeasuredData, fused: np.ndarray, window: int = FUSION_WIND
     even a slow one, keeps its fused angle: its sign times the crossing to a
     fraction of a sample, and a side one sample early costs a transient of
     the size of the friction change.
+
+    With `opening`, the readings of 0 that open a run are on the boundary whatever their
+    number and whatever the fused angle: a run that starts at rest at 0
+    (every run of the reference simulator, and a test started from a
+    zeroed resolver) breaks away at once, so the rest may be shorter than
+    `BOUNDARY_READINGS`, and the fusion's centred window is cut there (its
+    level is the mean of the quantization over the first half window, not
+    the position). Until the resolver leaves 0 the direction of the motion
+    picks the side, which is where the angle goes. Read from the fused
+    angle, the first steps took the other side's motor gain and friction
+    at random, an error that decays with the pole: the true parameters of
+    reference clean axes 140, 159, 170, 174, 177 and 199 stood at
+    1.12-2.61 noise sigmas on a training run, and at 0.99-1.01 with this
+    rule (docs/identification.md "Stop 41"). A rule of the sub-stepped
+    model (`Integration.opens_on_boundary`): a discrete axis stepped once
+    per sample (Eq. 6, the twin) takes its first step from angle 0 itself.
     """
     zero = data.angle == 0.0
     if not zero.any():
@@ -111,10 +129,15 @@ def at_boundary(data: MeasuredData, fused: np.ndarray, window: int = FUSION_WIND
     for lo, hi in zip(edges[::2], edges[1::2]):
         if hi - lo >= BOUNDARY_READINGS:
             long_run[lo:hi] = True
-    return long_run & (np.abs(fused) <= 4.0 * fusion_noise(data, window))
+    boundary = long_run & (np.abs(fused) <= 4.0 * fusion_noise(data, window))
+    if opening and zero[0]:
+        boundary[: edges[1]] = True
+    return boundary
 
 
-def side_angle(data: MeasuredData, side_source: str = "measured", shift: float = 0.0) -> np.ndarray:
+def side_angle(
+    data: MeasuredData, side_source: str = "measured", shift: float = 0.0, opening: bool = False
+) -> np.ndarray:
     """The angle [rad] whose sign selects the half-plane of each step (see module doc).
 
     Entry k picks the regime of the step from sample k to k+1. With
@@ -134,7 +157,7 @@ def side_angle(data: MeasuredData, side_source: str = "measured", shift: float =
     """
     if side_source == "measured":
         y = fused_angle(data)
-        y[at_boundary(data, y)] = 0.0
+        y[at_boundary(data, y, opening=opening)] = 0.0
         if shift == 0.0:
             return y
         k = np.arange(y.size, dtype=float)
@@ -160,14 +183,16 @@ def sides_as_read(runs: Sequence[MeasuredData], side_source: str) -> list[Measur
     return [replace(d, angle=side_angle(d, source)) for d in runs]
 
 
-def with_side_angle(data: MeasuredData, side_source: str, shift: float = 0.0) -> MeasuredData:
+def with_side_angle(
+    data: MeasuredData, side_source: str, shift: float = 0.0, opening: bool = False
+) -> MeasuredData:
     """The run with `side_angle` as its angle; with the fused angle
     (``measured``) the measured one is kept as ``resolver``, whose sign the
     model's side keeps on a two-mass axis
     (`isp_twin.estimation.simulation_error.resolver_sides`), with the
     fusion window's mean acceleration (`window_accel`,
     `isp_twin.model.effects.base.Effect.fusion_gain`)."""
-    angle = side_angle(data, side_source, shift)
+    angle = side_angle(data, side_source, shift, opening)
     if side_source != "measured":
         return replace(data, angle=angle, resolver=None, fusion_accel=None)
     # At rest on the boundary (`at_boundary`) the side angle is 0, not fused.

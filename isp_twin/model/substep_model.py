@@ -146,6 +146,15 @@ class Integration:
         if int(self.substeps) != self.substeps or self.substeps < 1:
             raise ParameterError(f"substeps must be an integer >= 1, got {self.substeps}")
 
+    @property
+    def opens_on_boundary(self) -> bool:
+        """A run whose resolver reads 0 at its start starts on the boundary
+        (`isp_twin.identification.side_angle.at_boundary`): sub-steps follow
+        a continuous axis, which enters the side of its motion at once; one
+        step per sample (Eq. 6, the twin) takes its first step from angle 0
+        itself, on Eq. 5's side of 0 (docs/identification.md "Stop 41")."""
+        return self.substeps > 1
+
     def kernel_flags(self) -> tuple[bool, int, bool]:
         """The sub-step kernel's switches, in its argument order (`_advance`):
         the splits as a mask of `SPLIT_REVERSALS` and `SPLIT_SIDES`."""
