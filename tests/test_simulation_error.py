@@ -124,6 +124,51 @@ def test_the_rest_rule_decides_the_initial_state(runs_and_rate):
     assert stack_runs([noisy], rest=None).omega[0, 0] == 0.05
 
 
+def test_a_first_reading_within_the_noise_is_rest_whatever_the_fixed_level(runs_and_rate):
+    """identify's fixed level (0.1 deg/s) below three noise sigmas: a first
+    reading of 0.15 deg/s on a gyro of 0.07 deg/s is noise, so rest."""
+    runs, _ = runs_and_rate
+    r = runs[0]
+    sigma = 0.07 * DEG
+    noise = sigma * np.random.default_rng(1).standard_normal(len(r.u))
+    noisy = replace(r, omega=np.concatenate([[0.15 * DEG], noise[1:]]))
+    assert stack_runs([noisy], rest=0.1 * DEG).omega[0, 0] == 0.0
+    far = replace(noisy, omega=np.concatenate([[0.5 * DEG], noise[1:]]))
+    assert stack_runs([far], rest=0.1 * DEG).omega[0, 0] == 0.5 * DEG
+
+
+def test_a_slow_reference_axis_starts_at_rest_under_a_noisy_first_reading():
+    """The reference simulator (no shared code) from rest on a 0.5 s axis,
+    gyro noise 0.07 deg/s: where the first reading is above 0.1 deg/s, the
+    true parameters still reach the noise over the first 0.5 s (the first
+    reading as the initial state left 1.8 sigmas there on reference clean
+    axis 194's train1)."""
+    from isp_twin.identification.read_out import Timing
+    from isp_twin.model.parameters import RATE_LAYOUT
+    from isp_twin.reference import REGIME_NAMES, Axis, RegimeFriction, Sensors, simulate
+    from isp_twin.reference.truth import rate_form
+
+    axis = Axis(0.05, 0.1, 3e-4, tuple(RegimeFriction(0.1, 0.06, 5.0) for _ in REGIME_NAMES))
+    form = rate_form(axis)
+    truth = RateParams.from_vector(
+        np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
+    )
+    sigma = 0.07 * DEG
+    t = np.arange(1000) * 1e-3
+    u = 900.0 * np.cos(2 * np.pi * t)
+    sensors = Sensors(gyro_noise_rad_s=sigma, gyro_averaged=True, resolver_bits=16)
+    tried = 0
+    for seed in range(40):
+        r = simulate(axis, u, sensors=sensors, theta0_rad=-0.1, seed=seed)
+        if abs(r.omega[0]) <= 0.1 * DEG:
+            continue
+        tried += 1
+        data = MeasuredData("run", r.t, r.u, r.omega, r.theta, None, 1e-3)
+        e = eq9_residuals(truth, [data], timing=Timing(0.0, True))[:500]
+        assert np.sqrt(np.mean(e**2)) / sigma < 1.2, seed
+    assert tried >= 5
+
+
 def test_a_diverging_parameter_set_loses_instead_of_giving_nan(runs_and_rate):
     """A pole outside the unit circle makes the model blow up: the cost is
     large and finite (the searches compare it), in identify's Eq. 9 too."""

@@ -5,8 +5,8 @@ by side for a batch of model variants.
 (`isp_twin.diagnosis`) both stack their runs here (`stack_runs`) and take
 their residuals from `residuals`; they differ only in what they ask of the
 stack: `identify` counts every sample after the first and calls a first
-rate below a fixed level rest, `diagnose` leaves a warm-up out and calls a
-first rate within the noise rest.
+rate below a fixed level or within the noise rest, `diagnose` leaves a
+warm-up out and calls a first rate within the noise rest.
 
 The runs become rows of one batched call of
 `isp_twin.model.substep_model.simulate_substeps` (padded to the longest), so
@@ -193,9 +193,15 @@ def stack_runs(
             side_follows_gyro None: whether the runs carry the fused angle
             (a ``resolver`` kept beside it, `side_angle.with_side_angle`):
             a raw resolver's angle is the motor side's already.
-        rest: a first measured rate at most this large [rad/s] starts the
-            model at rest; None: at most three noise standard deviations
-            (the noise from the run's first 2000 samples).
+        rest: a first measured rate at most this large [rad/s], or at most
+            three noise standard deviations (the noise from the run's first
+            2000 samples), starts the model at rest; None: the noise's level
+            alone. A fixed level below the noise's let a first reading of
+            noise start the model moving, an error that decays with the
+            pole: 1.8 noise sigmas over the first 0.5 s of reference clean
+            axis 194's train1 (0.5 s axis, 0.07 deg/s noise, first reading
+            0.16 deg/s) with its true parameters (docs/identification.md
+            "Stop 41").
 
     Raises:
         DataError: no runs, or runs with different sample periods.
@@ -216,9 +222,9 @@ def stack_runs(
         # The first measured rate is the initial state; a reading within the
         # rest level is rest (the stiction branch of Eq. 5), not a slow
         # motion in the direction of the noise.
-        level = rest
-        if level is None:
-            level = 3.0 * noise_floor_of([r.omega[:2000]], SCALE_DIFFERENCE) if m > 8 else -1.0
+        level = 3.0 * noise_floor_of([r.omega[:2000]], SCALE_DIFFERENCE) if m > 8 else -1.0
+        if rest is not None:
+            level = max(rest, level)
         first[i], levels[i] = r.omega[0], level
         if abs(r.omega[0]) <= level:
             omega[i, 0] = 0.0

@@ -38,7 +38,8 @@ def run_stack(
     """The runs as Eq. 9 sees them, stacked for the shared simulation error
     (`isp_twin.estimation.simulation_error`): the half-plane from the
     `side_source` angle read at `timing`, every sample after the first
-    counted, a first rate within `rest_rate_deg_s` [deg/s] taken as rest."""
+    counted, a first rate within `rest_rate_deg_s` [deg/s] or within three
+    noise sigmas taken as rest (`stack_runs`)."""
     shift = timing.side_shift / integration.substeps
     runs = [with_side_angle(d, side_source, shift, integration.opens_on_boundary) for d in data]
     return stack_runs(
