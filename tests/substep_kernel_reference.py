@@ -5,8 +5,7 @@ it bit for bit. Not cached: compiled once per test session. The side of
 angle 0 follows the direction (`isp_twin.model.friction.side_of`, the
 boundary rule added after 9cc08c3). With `by_drive` the gain at rest is
 the gain of the regime the total drive breaks towards
-(`Integration.rest_drive_gain`, added at stop 21). With `mid` a breakaway
-sub-step takes the sliding friction at its mean rate (added at stop 41)."""
+(`Integration.rest_drive_gain`, added at stop 21)."""
 
 from numba import njit
 
@@ -110,10 +109,6 @@ def advance_row_by_row(
                             ts2 = table[i, idx, 2]
                             if free and abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
-                                if mid:  # the breakaway's friction at its mean rate
-                                    slide = law.sliding(0.5 * w_new, ts2, table[i, idx, 3],
-                                                        table[i, idx, 4])  # fmt: skip
-                                    w_new = rest_part * (d - slide)
                     w = w_new
                 else:
                     # At rest the command's sign (or with `by_drive` the
@@ -125,8 +120,6 @@ def advance_row_by_row(
                     ts = table[i, idx, 2]
                     if free and abs(d) > ts:
                         w = d - law.stiction(d, ts)
-                        if mid:  # the breakaway's friction at its mean rate
-                            w = d - law.sliding(0.5 * w, ts, table[i, idx, 3], table[i, idx, 4])
                     else:
                         w = 0.0
                 y = y + h * w

@@ -33,8 +33,7 @@ Karnopp test but whose rate the bristle force turns back stays stuck (the
 reference simulator's stick logic, `isp_twin.reference.axis`). The stick test
 of Eq. 5 is made at every sub-step. With ``midpoint_friction`` the sliding friction is taken at the mean
 of the sub-step's start rate and a predicted end rate (second order in the
-sub-step), the sub-step that breaks away included (its start rate is 0,
-`_breakaway_friction`); with ``split_reversals`` a sub-step in which the rate reaches zero
+sub-step); with ``split_reversals`` a sub-step in which the rate reaches zero
 ends there and the rest of it is spent on the stick/breakaway decision
 (a Karnopp band that cannot swallow part of a sub-step of motion). At rest
 the motor gain is the command's sign's regime's (Eq. 6), or with
@@ -96,8 +95,7 @@ class Integration:
 
     Attributes:
         substeps: m, integration steps per sample [1] (>= 1).
-        midpoint_friction: sliding friction at the sub-step's mean rate,
-            the breakaway's sub-step included.
+        midpoint_friction: sliding friction at the sub-step's mean rate.
         split_reversals: a sub-step that reaches rate 0 decides stick or
             breakaway for its remaining part.
         exact_effect_hold: an effect's acceleration (torque/J) held over the
@@ -239,25 +237,6 @@ def _part_before(a, a_end):  # pragma: no cover - compiled
 def _sliding_in(table, i, ix, w):  # pragma: no cover - compiled
     """Eq. 5's sliding friction of regime `ix` at rate `w` [rate per sub-step]."""
     return law.sliding(w, table[i, ix, 2], table[i, ix, 3], table[i, ix, 4])
-
-
-@njit(cache=True, nogil=True)
-def _breakaway_friction(table, i, ix, w_end):  # pragma: no cover - compiled
-    """The sliding friction of a sub-step that breaks away in regime `ix`:
-    Eq. 5's at the mean of its rates, 0 and the end rate `w_end` that Ts
-    over all of it gives (`Integration.midpoint_friction`). Ts over all of
-    it, a steep Stribeck curve (alpha times the sub-step's rate change of
-    order 1) left the breakaway of a 6 ms reference axis 9 noise sigmas
-    slow at the first sample (docs/identification.md "Stop 41")."""
-    return law.sliding(0.5 * w_end, table[i, ix, 2], table[i, ix, 3], table[i, ix, 4])
-
-
-@njit(cache=True, nogil=True)
-def _rigid_row(coef, bristles, payload):  # pragma: no cover - compiled
-    """Whether a row's breakaway is the rigid axis' alone: no LuGre bristles
-    and no payload mode on the motor side (those rows break away through
-    `_break_through_bristles` and `_payload_motion`)."""
-    return not (bristles and coef[0] != 0.0) and not (payload and coef[2] != 0.0)
 
 
 @njit(cache=True, nogil=True)
@@ -616,9 +595,6 @@ def _advance_group(
                             ts2 = table[i, ix, 2]
                             if free and abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
-                                if mid and _rigid_row(sfx[i], bristles, payload):
-                                    w_new = rest_part * (d - _breakaway_friction(table, i, ix,
-                                                                                 w_new))  # fmt: skip
                                 if bristles:
                                     w_new = _break_through_bristles(
                                         w_new, d, rest_part, table[i, ix, 5], sfx[i], z, b, h
@@ -640,8 +616,6 @@ def _advance_group(
                     ts = table[i, ix, 2]
                     if free and abs(dd) > ts:
                         wb = d - law.stiction(dd, ts)
-                        if mid and _rigid_row(sfx[i], bristles, payload):
-                            wb = d - _breakaway_friction(table, i, ix, wb)
                         # Only a bristle force can hold the axis here: a
                         # two-mass axis's centre of mass may move against
                         # the motor side's breakaway (the spring's pull).
