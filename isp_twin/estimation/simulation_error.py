@@ -196,12 +196,7 @@ def stack_runs(
         rest: a first measured rate at most this large [rad/s], or at most
             three noise standard deviations (the noise from the run's first
             2000 samples), starts the model at rest; None: the noise's level
-            alone. A fixed level below the noise's let a first reading of
-            noise start the model moving, an error that decays with the
-            pole: 1.8 noise sigmas over the first 0.5 s of reference clean
-            axis 194's train1 (0.5 s axis, 0.07 deg/s noise, first reading
-            0.16 deg/s) with its true parameters (docs/identification.md
-            "Stop 41").
+            alone (why both: docs/identification.md "Stop 41").
 
     Raises:
         DataError: no runs, or runs with different sample periods.
