@@ -45,8 +45,9 @@ def _run(u: np.ndarray, theta0: float, seed: int) -> MeasuredData:
     return MeasuredData("run", r.t, r.u, r.omega, r.theta, None, 1e-3)
 
 
-def _truth() -> RateParams:
-    form = rate_form(_axis())
+def _truth(axis: Axis | None = None) -> RateParams:
+    """The rate form of `axis` (default `_axis`) as the model's parameters."""
+    form = rate_form(_axis() if axis is None else axis)
     return RateParams.from_vector(
         np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
     )
@@ -107,10 +108,7 @@ def test_a_run_that_starts_at_rest_on_zero_moves_on_the_side_it_enters():
     200 samples); with the side read from the sign of the cut fusion
     window, 7 of them did not (up to 12 sigmas; 2.6 on the whole of a
     training run of reference clean axis 159)."""
-    form = rate_form(_geared_axis())
-    truth = RateParams.from_vector(
-        np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
-    )
+    truth = _truth(_geared_axis())
     sigma = 3e-4  # the rest level 0.1 deg/s is 6 sigmas: every run starts at rest
     t = np.arange(1000) * 1e-3
     u = 950.0 * np.cos(2 * np.pi * 1.0 * t)
