@@ -5,7 +5,8 @@ it bit for bit. Not cached: compiled once per test session. The side of
 angle 0 follows the direction (`isp_twin.model.friction.side_of`, the
 boundary rule added after 9cc08c3). With `by_drive` the gain at rest is
 the gain of the regime the total drive breaks towards
-(`Integration.rest_drive_gain`, added at stop 21)."""
+(`Integration.rest_drive_gain`, added at stop 21); from angle 0 a break
+towards + passes L+'s level too (Eq. 5's Y = 0, added at stop 42)."""
 
 from numba import njit
 
@@ -29,6 +30,11 @@ def _rest_gain_regime(table, i, ys, uk, ek, fixed_side, by_drive):
             r = _regime(ys, direction, fixed_side)
             d = table[i, r, 1] * uk + table[i, r, 5] * ek
             if direction * d > table[i, r, 2]:
+                if ys == 0.0 and direction > 0.0 and fixed_side < 0:
+                    # From angle 0 (Eq. 5's L) the + break passes L+ first.
+                    left = _regime(-1.0, 1.0, fixed_side)
+                    if table[i, left, 1] * uk + table[i, left, 5] * ek <= table[i, left, 2]:
+                        continue
                 return r, True
         return _regime(ys, uk, fixed_side), False
     return _regime(ys, uk, fixed_side), True

@@ -10,6 +10,8 @@ the data start on the boundary (`isp_twin.model.friction.side_of`,
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from isp_twin.identification.cost import residuals, rmse
@@ -121,4 +123,28 @@ def test_a_run_that_starts_at_rest_on_zero_moves_on_the_side_it_enters():
         assert at_boundary(data, fused_angle(data), opening=True)[:opening].all()
         e = residuals(truth, [data], timing=Timing(0.0, True))[:200]
         err = float(np.sqrt(np.mean(e**2))) / sigma
+        assert err < 1.3, (seed, err)
+
+
+def _left_held_axis() -> Axis:
+    # `_axis` with R+ and L+ swapped: L+ breaks away at 0.050 N·m, R+ at
+    # 0.030. A drive of 0.040 N·m passes R+'s level but not L+'s.
+    r_plus, r_minus, l_plus, l_minus = _axis().regimes
+    return replace(_axis(), regimes=(l_plus, r_minus, r_plus, l_minus))
+
+
+def test_a_break_towards_plus_from_zero_must_pass_the_left_level():
+    """Eq. 5 puts Y = 0 in L: from rest at 0 a + break passes L+'s level
+    before R+'s (`substep_model._rest_regime`). The reference stays at 0
+    under 0.040 N·m; the direction's side alone (R+) broke away there.
+    Over seeds the truth reaches the noise, the stuck stretch included."""
+    axis = _left_held_axis()
+    truth = _truth(axis)
+    stuck = simulate(axis, _steps(), sensors=SENSORS, theta0_rad=0.0, seed=None)
+    assert np.all(stuck.rate[:400] == 0.0)
+    for seed in range(5):
+        r = simulate(axis, _steps(), sensors=SENSORS, theta0_rad=0.0, seed=seed)
+        data = MeasuredData("run", r.t, r.u, r.omega, r.theta, None, 1e-3)
+        assert at_boundary(data, fused_angle(data), opening=True)[:400].all()
+        err = float(rmse(truth, [data], timing=Timing(0.0, True))) / SIGMA
         assert err < 1.3, (seed, err)

@@ -118,7 +118,8 @@ class Integration:
             `axis_model.simulate`). The two differ only where an effect's
             torque e opposes the command (reference cable_spring seed 3
             with its true parameters: 3.91 -> 1.13 noise floors on train2;
-            docs/diagnosis.md "Stop 21").
+            docs/diagnosis.md "Stop 21"). At angle 0 a break towards +
+            must also pass L+'s level, Eq. 5's Y = 0 (`_rest_regime`).
         split_sides: a sub-step in which the angle choosing the half-plane
             crosses 0 takes the regime of each side for its part of the
             sub-step (pole, drive and friction weighted by time), instead
@@ -284,12 +285,20 @@ def _rest_regime(table, i, a, uk, ek, fixed_side, by_drive):  # pragma: no cover
     With it, the axis breaks towards + where the + regime's drive ``g+ u +
     f e`` passes Ts+, else towards - where ``g- u + f e`` passes -Ts-
     (`Integration.rest_drive_gain`); ek is the extra drive in effect units.
+    At angle 0 (on the boundary) a break towards + must pass L+'s level
+    too: Eq. 5 puts Y = 0 in L, and the motion then enters Y > 0, where R+
+    holds (the reference simulator's continuous axis; docs/identification.md
+    "Stop 42").
     """
     if not by_drive:
         return _regime_at(a, uk, fixed_side)
     rp = _regime_at(a, 1.0, fixed_side)
     if table[i, rp, 1] * uk + table[i, rp, 5] * ek > table[i, rp, 2]:
-        return rp
+        if a != 0.0 or fixed_side >= 0:
+            return rp
+        rl = _regime_at(-1.0, 1.0, -1)  # L+, Eq. 5's regime of Y = 0
+        if table[i, rl, 1] * uk + table[i, rl, 5] * ek > table[i, rl, 2]:
+            return rp
     rm = _regime_at(a, -1.0, fixed_side)
     if table[i, rm, 1] * uk + table[i, rm, 5] * ek < -table[i, rm, 2]:
         return rm
