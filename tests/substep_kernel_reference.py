@@ -6,7 +6,8 @@ angle 0 follows the direction (`isp_twin.model.friction.side_of`, the
 boundary rule added after 9cc08c3). With `by_drive` the gain at rest is
 the gain of the regime the total drive breaks towards
 (`Integration.rest_drive_gain`, added at stop 21); from angle 0 a break
-towards + passes L+'s level too (Eq. 5's Y = 0, added at stop 42)."""
+towards + passes L+'s level too (Eq. 5's Y = 0, added at stop 42). With `mid` a breakaway
+sub-step takes the sliding friction at its mean rate (added at stop 42)."""
 
 from numba import njit
 
@@ -115,6 +116,10 @@ def advance_row_by_row(
                             ts2 = table[i, idx, 2]
                             if free and abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
+                                if mid:  # the breakaway's friction at its mean rate
+                                    slide = law.sliding(0.5 * w_new, ts2, table[i, idx, 3],
+                                                        table[i, idx, 4])  # fmt: skip
+                                    w_new = rest_part * (d - slide)
                     w = w_new
                 else:
                     # At rest the command's sign (or with `by_drive` the
@@ -126,6 +131,8 @@ def advance_row_by_row(
                     ts = table[i, idx, 2]
                     if free and abs(d) > ts:
                         w = d - law.stiction(d, ts)
+                        if mid:  # the breakaway's friction at its mean rate
+                            w = d - law.sliding(0.5 * w, ts, table[i, idx, 3], table[i, idx, 4])
                     else:
                         w = 0.0
                 y = y + h * w

@@ -6,7 +6,9 @@ the least squares from the data's start stops at about 1.02 noise sigmas on
 training, so the global search never ran, and held out the model is about
 two sigmas off; restarted from that end it goes on to the truth's basin.
 Seed 12 is one of the three axes (12, 15, 18) on which the restart was
-chosen: this pins the mechanism, the rates are the benchmark's.
+chosen: this pins the mechanism, the rates are the benchmark's. Since stop
+42 (the breakaway's friction at its mean rate) the fit without the restart
+is no longer in the wrong basin here (1.12 held out).
 """
 
 from __future__ import annotations
@@ -48,10 +50,12 @@ def fits():
     return out
 
 
-def test_without_the_restart_the_fit_stops_at_the_noise_in_the_wrong_basin(fits):
+def test_without_the_restart_the_fit_stops_at_the_noise(fits):
+    """Judged at the noise, so the global search does not run. (Held out it
+    was 2 sigmas off until stop 42; with the breakaway sub-step's friction
+    at its mean rate it reads 1.12: that wrong basin is gone on this axis.)"""
     res, errors = fits[False]
-    assert max(errors[:2]) < Settings().converged_ratio  # at the noise: no global search
-    assert errors[2] > 1.5
+    assert max(errors[:2]) < Settings().converged_ratio
 
 
 def test_restarted_it_reaches_the_noise_held_out(fits):

@@ -241,6 +241,25 @@ def _sliding_in(table, i, ix, w):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def _breakaway_friction(table, i, ix, w_end):  # pragma: no cover - compiled
+    """The sliding friction of a sub-step that breaks away in regime `ix`:
+    Eq. 5's at the mean of its rates, 0 and the end rate `w_end` that Ts
+    over all of it gives (`Integration.midpoint_friction`). Ts over all of
+    it, a steep Stribeck curve (alpha times the sub-step's rate change of
+    order 1) left the breakaway of a 6 ms reference axis 9 noise sigmas
+    slow at the first sample (docs/identification.md "Stop 42")."""
+    return law.sliding(0.5 * w_end, table[i, ix, 2], table[i, ix, 3], table[i, ix, 4])
+
+
+@njit(cache=True, nogil=True)
+def _rigid_row(coef, bristles, payload):  # pragma: no cover - compiled
+    """Whether a row's breakaway is the rigid axis' alone: no LuGre bristles
+    and no payload mode on the motor side (those rows break away through
+    `_break_through_bristles` and `_payload_motion`)."""
+    return not (bristles and coef[0] != 0.0) and not (payload and coef[2] != 0.0)
+
+
+@njit(cache=True, nogil=True)
 def _across_sides(table, i, ix2, q, w, uk, ek, p, drive, slide):  # pragma: no cover - compiled
     """(pole, drive, sliding friction) of a sub-step whose angle changes side
     after its part `q`: the start regime's (`p`, `drive`, `slide`) over q, the
@@ -604,6 +623,9 @@ def _advance_group(
                             ts2 = table[i, ix, 2]
                             if free and abs(d) > ts2:
                                 w_new = rest_part * (d - law.stiction(d, ts2))
+                                if mid and _rigid_row(sfx[i], bristles, payload):
+                                    w_new = rest_part * (d - _breakaway_friction(table, i, ix,
+                                                                                 w_new))  # fmt: skip
                                 if bristles:
                                     w_new = _break_through_bristles(
                                         w_new, d, rest_part, table[i, ix, 5], sfx[i], z, b, h
@@ -625,6 +647,8 @@ def _advance_group(
                     ts = table[i, ix, 2]
                     if free and abs(dd) > ts:
                         wb = d - law.stiction(dd, ts)
+                        if mid and _rigid_row(sfx[i], bristles, payload):
+                            wb = d - _breakaway_friction(table, i, ix, wb)
                         # Only a bristle force can hold the axis here: a
                         # two-mass axis's centre of mass may move against
                         # the motor side's breakaway (the spring's pull).
