@@ -13,14 +13,14 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from truth_error import true_rate_params
 
 from isp_twin.identification.cost import residuals, rmse
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.identification.side_angle import at_boundary, fused_angle
-from isp_twin.model.parameters import RATE_LAYOUT, RateParams
-from isp_twin.reference import REGIME_NAMES, Axis, RegimeFriction, Sensors, simulate
-from isp_twin.reference.truth import rate_form
+from isp_twin.model.parameters import RateParams
+from isp_twin.reference import Axis, RegimeFriction, Sensors, simulate
 
 SIGMA = 1e-3  # gyro noise [rad/s]
 SENSORS = Sensors(gyro_noise_rad_s=SIGMA, gyro_averaged=True, resolver_bits=19)
@@ -49,10 +49,7 @@ def _run(u: np.ndarray, theta0: float, seed: int) -> MeasuredData:
 
 def _truth(axis: Axis | None = None) -> RateParams:
     """The rate form of `axis` (default `_axis`) as the model's parameters."""
-    form = rate_form(_axis() if axis is None else axis)
-    return RateParams.from_vector(
-        np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
-    )
+    return true_rate_params(_axis() if axis is None else axis)
 
 
 def _steps() -> np.ndarray:

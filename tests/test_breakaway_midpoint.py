@@ -13,27 +13,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from truth_error import true_rate_params
 
 from isp_twin.identification.cost import simulate_data
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
-from isp_twin.model.parameters import RATE_LAYOUT, RateParams
 from isp_twin.model.substep_model import EQ6
 from isp_twin.reference import REGIME_NAMES, Axis, RegimeFriction, Sensors, simulate
-from isp_twin.reference.truth import rate_form
 
 
 def _axis(alpha: float) -> Axis:
     # J 0.0375 kg·m^2, eta 5.9 N·m·s/rad (6.4 ms), Ts 8.5 and Tc 3.8 N·m,
     # a drive of 25.5 N·m at 850 digits.
     return Axis(0.0375, 5.9, 0.03, tuple(RegimeFriction(8.5, 3.8, alpha) for _ in REGIME_NAMES))
-
-
-def _truth(axis: Axis) -> RateParams:
-    form = rate_form(axis)
-    return RateParams.from_vector(
-        np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
-    )
 
 
 def _first_samples(alpha: float, integration=None):
@@ -44,7 +36,9 @@ def _first_samples(alpha: float, integration=None):
     r = simulate(axis, u, sensors=sensors, theta0_rad=-0.07, seed=None)
     data = MeasuredData("step", r.t, r.u, r.omega, r.theta, None, 1e-3)
     kw = {} if integration is None else {"integration": integration}
-    return r.omega, simulate_data(_truth(axis), data, timing=Timing(0.0, True), **kw).omega
+    return r.omega, simulate_data(
+        true_rate_params(axis), data, timing=Timing(0.0, True), **kw
+    ).omega
 
 
 @pytest.mark.parametrize("alpha", [10.0, 23.0, 60.0])

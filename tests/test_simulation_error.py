@@ -143,16 +143,13 @@ def test_a_slow_reference_axis_starts_at_rest_under_a_noisy_first_reading():
     true parameters still reach the noise over the first 0.5 s (the first
     reading as the initial state left 1.8 sigmas there on reference clean
     axis 194's train1)."""
+    from truth_error import true_rate_params
+
     from isp_twin.identification.read_out import Timing
-    from isp_twin.model.parameters import RATE_LAYOUT
     from isp_twin.reference import REGIME_NAMES, Axis, RegimeFriction, Sensors, simulate
-    from isp_twin.reference.truth import rate_form
 
     axis = Axis(0.05, 0.1, 3e-4, tuple(RegimeFriction(0.1, 0.06, 5.0) for _ in REGIME_NAMES))
-    form = rate_form(axis)
-    truth = RateParams.from_vector(
-        np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
-    )
+    truth = true_rate_params(axis)
     sigma = 0.07 * DEG
     t = np.arange(1000) * 1e-3
     u = 900.0 * np.cos(2 * np.pi * t)

@@ -9,8 +9,18 @@ from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
 from isp_twin.model.substep_model import Integration
-from isp_twin.reference import design_experiment
+from isp_twin.reference import REGIME_NAMES, Axis, design_experiment
+from isp_twin.reference.truth import rate_form
 from isp_twin.units import DEG
+
+
+def true_rate_params(axis: Axis) -> RateParams:
+    """A reference axis' rate form (`isp_twin.reference.truth.rate_form`, 1 ms
+    samples) as the model's parameters."""
+    form = rate_form(axis)
+    return RateParams.from_vector(
+        np.concatenate([[form[n][f] for f in RATE_LAYOUT.fields] for n in REGIME_NAMES])
+    )
 
 
 def truth_error(seed: int, effect: str, integration: Integration) -> list[float]:
