@@ -589,13 +589,14 @@ def _other_reading_restart(search: _Search) -> None:
 
     `_refine_from_start` picks the reading from a third of the budget from
     the start; where that part ends above the other reading's, the whole
-    budget goes to the wrong one. Reference clean seed 141 (its gyro
-    averages): read at the sample, 1.034/1.041 truth sigmas on training and
-    1.35 held out; averaged, 1.014/1.016 and 1.00. Seed 237 with the
-    breakaway's midpoint friction: 1.30/1.73 at the sample (docs/identification.md
-    "Stop 42"). Not with a timing given (`Settings.timing`) or a side source
-    other than the measured angle, nor in diagnose's fits
-    (`Settings.restart_at_noise` off).
+    budget goes to the wrong one. Reference clean seed 237 (its gyro
+    averages) with the breakaway's friction at its mean rate: 1.30/1.73
+    floors on training at the sample, 1.01/1.00 averaged
+    (docs/identification.md "Stop 42"). Seed 141 is the same kind of miss
+    (1.034/1.041 truth sigmas at the sample, 1.014/1.016 averaged) but
+    below `NEAR_NOISE`: the stage does not run there. Not with a timing
+    given (`Settings.timing`) or a side source other than the measured
+    angle, nor in diagnose's fits (`Settings.restart_at_noise` off).
     """
     s = search.s
     if s.timing is not None or s.side_source != "measured" or not s.restart_at_noise:

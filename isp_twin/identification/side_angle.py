@@ -99,7 +99,9 @@ def at_boundary(
     of its own noise (the integrated gyro noise less its moving average,
     ``sigma dt sqrt(window / 12)``): its sign is only that noise. The side
     angle is 0 there and the direction of the motion picks the side
-    (`isp_twin.model.friction.side_of`), as on the real axis. A crossing,
+    (`isp_twin.model.friction.side_of`), as on the real axis; from rest
+    there a break towards + passes L+'s level too, Eq. 5's Y = 0
+    (`isp_twin.model.substep_model._rest_regime`). A crossing,
     even a slow one, keeps its fused angle: its sign times the crossing to a
     fraction of a sample, and a side one sample early costs a transient of
     the size of the friction change.
