@@ -6,8 +6,9 @@ angle 0 follows the direction (`isp_twin.model.friction.side_of`, the
 boundary rule added after 9cc08c3). With `by_drive` the gain at rest is
 the gain of the regime the total drive breaks towards
 (`Integration.rest_drive_gain`, added at stop 21); from angle 0 a break
-towards + passes L+'s level too (Eq. 5's Y = 0, added at stop 42). With `mid` a breakaway
-sub-step takes the sliding friction at its mean rate (added at stop 42)."""
+towards + passes L+'s level too (Eq. 5's Y = 0, added at stop 42). With
+`mid` a breakaway sub-step takes the sliding friction at its mean rate
+(added at stop 42)."""
 
 from numba import njit
 

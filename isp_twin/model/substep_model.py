@@ -33,7 +33,8 @@ Karnopp test but whose rate the bristle force turns back stays stuck (the
 reference simulator's stick logic, `isp_twin.reference.axis`). The stick test
 of Eq. 5 is made at every sub-step. With ``midpoint_friction`` the sliding friction is taken at the mean
 of the sub-step's start rate and a predicted end rate (second order in the
-sub-step); with ``split_reversals`` a sub-step in which the rate reaches zero
+sub-step), the sub-step that breaks away included (its start rate is 0,
+`_breakaway_friction`); with ``split_reversals`` a sub-step in which the rate reaches zero
 ends there and the rest of it is spent on the stick/breakaway decision
 (a Karnopp band that cannot swallow part of a sub-step of motion). At rest
 the motor gain is the command's sign's regime's (Eq. 6), or with
@@ -95,7 +96,8 @@ class Integration:
 
     Attributes:
         substeps: m, integration steps per sample [1] (>= 1).
-        midpoint_friction: sliding friction at the sub-step's mean rate.
+        midpoint_friction: sliding friction at the sub-step's mean rate,
+            the breakaway's sub-step included.
         split_reversals: a sub-step that reaches rate 0 decides stick or
             breakaway for its remaining part.
         exact_effect_hold: an effect's acceleration (torque/J) held over the
