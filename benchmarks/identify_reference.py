@@ -18,7 +18,10 @@ print one table row per case:
   10 % of the truth (delay within one sample, cogging period within 1 %,
   phases within 0.1 rad wrapped), counted on the axes where the right effect
   was selected;
-* time per command: median and max [s]; timeouts and failures;
+* time per command: median and max [s]; timeouts and failures. The issue's
+  speed targets are for one command on 2 cores: they are judged on the axes
+  run one at a time (``--jobs 1``); with more workers the commands share the
+  cores and their times are printed, not judged (`speed_lines`);
 * torque offset, a second scoring beside the first: an equivalent ``none``
   counted as right where the offset is exactly a shift of the friction
   levels (`offset_equivalence`, docs/diagnosis.md "Sensor bias and torque
@@ -159,8 +162,15 @@ def param_ok(name: str, key: str, fitted: float, true: float, dt: float) -> bool
     return abs(fitted - true) <= 0.1 * abs(true)
 
 
-def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) -> dict:
-    """Draw, write, identify, diagnose one axis; the record stored in the database."""
+def one_axis(
+    case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S, axes_at_once: int = 1
+) -> dict:
+    """Draw, write, identify, diagnose one axis; the record stored in the database.
+
+    `axes_at_once`: how many axes the cluster runs at the same time, stored
+    with this machine's core count: the command times mean the issue's
+    "on 2 cores" only where one axis ran at a time (`speed_lines`).
+    """
     import yaml
 
     from isp_twin.identification.measured import MeasuredData, save_measured
@@ -168,7 +178,8 @@ def one_axis(case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S) 
 
     folder = workdir / case / f"seed{seed}"
     folder.mkdir(parents=True, exist_ok=True)
-    rec: dict = {"case": case, "seed": seed}
+    rec: dict = {"case": case, "seed": seed, "axes_at_once": axes_at_once}
+    rec["cores"] = os.cpu_count()
     start = time.perf_counter()
     try:
         exp = design_experiment(seed, None if case == "clean" else case)
@@ -544,31 +555,45 @@ def target_lines(records: list[dict], case: str) -> list[str]:
 
 
 def speed_lines(records: list[dict]) -> list[str]:
-    """Speed and memory targets over every axis run (wall times on this machine)."""
+    """Speed and memory targets (wall times on this machine).
 
-    def worst(key: str) -> float:
-        v = [r[key] for r in records if key in r]
+    The issue's times are for one command on 2 cores: judged on the axes run
+    one at a time (`one_axis`'s ``axes_at_once``). Axes run beside others
+    shared the cores, and records stored before the count was kept have
+    none: their times are printed, not judged.
+    """
+
+    def worst(key: str, rows=records) -> float:
+        v = [r[key] for r in rows if key in r]
         return max(v) if v else float("nan")
 
-    def med(key: str) -> float:
-        v = [r[key] for r in records if key in r]
+    def med(key: str, rows=records) -> float:
+        v = [r[key] for r in rows if key in r]
         return statistics.median(v) if v else float("nan")
 
     over = sum(
         1 for r in records if max(r.get("identify_s", 0), r.get("diagnose_s", 0)) > TIMEOUT_S
     )
-    lines = []
+    alone = [r for r in records if r.get("axes_at_once") == 1]
+    cores = sorted({r["cores"] for r in alone if "cores" in r})
+    lines = [
+        f"command times of the {len(alone)} axes run one at a time "
+        f"(cores {'/'.join(map(str, cores)) or '-'}); "
+        f"{len(records) - len(alone)} axes shared the cores with others or have no count"
+    ]
     for key, limit, what in (
         ("identify_s", 20.0, "identify 2 x 6000 samples"),
         ("diagnose_s", 60.0, "diagnose (whole library) 3 x 6000 samples"),
     ):
-        k = sum(1 for r in records if r.get(key, math.inf) <= limit)
-        n = sum(1 for r in records if key in r)
+        k = sum(1 for r in alone if r.get(key, math.inf) <= limit)
+        n = sum(1 for r in alone if key in r)
         cpu = key.replace("_s", "_cpu_s")
+        verdict = ("MET" if k == n else "NOT MET") if n else "not judged (no axis run alone)"
         lines.append(
-            f"{what}: wall median {med(key):.1f} s, max {worst(key):.1f} s; CPU median "
-            f"{med(cpu):.1f} s, max {worst(cpu):.1f} s; {k}/{n} within {limit:g} s "
-            f"(target: all) {'MET' if n and k == n else 'NOT MET'}"
+            f"{what}: wall median {med(key, alone):.1f} s, max {worst(key, alone):.1f} s; CPU "
+            f"median {med(cpu, alone):.1f} s, max {worst(cpu, alone):.1f} s; {k}/{n} within "
+            f"{limit:g} s (target: all) {verdict}; all {len(records)} axes: wall median "
+            f"{med(key):.1f} s, max {worst(key):.1f} s"
         )
     lines.append(
         f"runs over {TIMEOUT_S:g} s: {over} (target 0) {'MET' if over == 0 else 'NOT MET'}"
@@ -596,7 +621,7 @@ def _run_axes(todo: list[tuple[str, int]], db: sqlite3.Connection, workdir: Path
     try:
         threads = sum(client.nthreads().values())
         futures = {
-            client.submit(one_axis, c, s, workdir, args.timeout, pure=False): (c, s)
+            client.submit(one_axis, c, s, workdir, args.timeout, threads, pure=False): (c, s)
             for c, s in todo
         }
         for fut in as_completed(futures):
