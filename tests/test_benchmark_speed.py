@@ -46,3 +46,11 @@ def test_a_slow_command_run_alone_misses_the_target():
 def test_records_without_the_count_are_not_judged():
     line = _identify_line([_axis(8.0, None), _axis(9.0, 2)])
     assert "not judged" in line and "MET;" not in line
+
+
+def test_a_shared_run_over_two_minutes_is_counted_not_judged():
+    shared = _axis(10.0, 2)
+    shared["diagnose_s"] = 130.0
+    lines = _speed_lines()([_axis(8.0, 1), shared])
+    line = next(line for line in lines if line.startswith("runs over"))
+    assert "0 of the axes run alone (target 0) MET; 1 of all 2" in line
