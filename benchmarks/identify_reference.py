@@ -598,9 +598,10 @@ def speed_lines(records: list[dict]) -> list[str]:
             f"{limit:g} s (target: all) {verdict}; all {len(records)} axes: wall median "
             f"{med(key):.1f} s, max {worst(key):.1f} s"
         )
-    verdict = ("MET" if over(alone) == 0 else "NOT MET") if alone else "not judged"
+    n_over = over(alone)
+    verdict = ("MET" if n_over == 0 else "NOT MET") if alone else "not judged"
     lines.append(
-        f"runs over {TIMEOUT_S:g} s: {over(alone)} of the axes run alone (target 0) {verdict}; "
+        f"runs over {TIMEOUT_S:g} s: {n_over} of the axes run alone (target 0) {verdict}; "
         f"{over(records)} of all {len(records)}"
     )
     lines.append(
