@@ -32,7 +32,9 @@ computed here from its RMS figures (deg/s) and the truth's noise sigma. The
 diagnose JSON holds rmse_after and noise_floor in rad/s.
 
 Results go to an SQLite file keyed by (case, seed): an interrupted run
-resumes, a finished one reprints its table. Axes run as Dask tasks: a local
+resumes, a finished one reprints its table. Each record holds the commit of
+the checkout that ran it (`code_version`, ``+modified`` for uncommitted
+changes to the product or this script): a table that pools several says so. Axes run as Dask tasks: a local
 cluster of ``--jobs`` worker processes (default one per core), or the workers
 of a running scheduler (``--scheduler tcp://host:8786``) for the 40-axes-per-case
 study that outgrows one 2-core machine.
@@ -162,14 +164,54 @@ def param_ok(name: str, key: str, fitted: float, true: float, dt: float) -> bool
     return abs(fitted - true) <= 0.1 * abs(true)
 
 
+def code_version(root: Path = ROOT) -> str:
+    """The commit of the checkout at `root` that the commands run (12 hex digits),
+    with ``+modified`` when its tracked files under ``isp_twin/`` or
+    ``benchmarks/`` differ from it; ``unknown`` outside a git checkout."""
+
+    def git(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True)
+
+    try:
+        head = git("rev-parse", "--short=12", "HEAD")
+        changed = git(
+            "status", "--porcelain", "--untracked-files=no", "--", "isp_twin", "benchmarks"
+        )
+    except OSError:
+        return "unknown"
+    if head.returncode != 0 or changed.returncode != 0:
+        return "unknown"
+    return head.stdout.strip() + ("+modified" if changed.stdout.strip() else "")
+
+
+def code_lines(records: list[dict]) -> list[str]:
+    """Which code made the stored records: a database resumed across sessions
+    pools only the axes of one commit unless it says otherwise."""
+    counts: dict[str, int] = {}
+    for r in records:
+        key = r.get("code", "not recorded")
+        counts[key] = counts.get(key, 0) + 1
+    made = ", ".join(f"{k} ({n} axes)" for k, n in sorted(counts.items()))
+    if len(counts) > 1:
+        return [f"code: the table pools records of {len(counts)} code versions: {made}"]
+    return [f"code: {made}"]
+
+
 def one_axis(
-    case: str, seed: int, workdir: Path, timeout_s: float = TIMEOUT_S, axes_at_once: int = 1
+    case: str,
+    seed: int,
+    workdir: Path,
+    timeout_s: float = TIMEOUT_S,
+    axes_at_once: int = 1,
+    code: str = "unknown",
 ) -> dict:
     """Draw, write, identify, diagnose one axis; the record stored in the database.
 
     `axes_at_once`: how many axes the cluster runs at the same time, stored
     with this machine's core count: the command times mean the issue's
-    "on 2 cores" only where one axis ran at a time (`speed_lines`).
+    "on 2 cores" only where one axis ran at a time (`speed_lines`). `code`:
+    the checkout's `code_version`, stored so that results resumed across
+    sessions say which code made them (`code_lines`).
     """
     import yaml
 
@@ -180,6 +222,7 @@ def one_axis(
     folder.mkdir(parents=True, exist_ok=True)
     rec: dict = {"case": case, "seed": seed, "axes_at_once": axes_at_once}
     rec["cores"] = os.cpu_count()
+    rec["code"] = code
     start = time.perf_counter()
     try:
         exp = design_experiment(seed, None if case == "clean" else case)
@@ -626,8 +669,9 @@ def _run_axes(todo: list[tuple[str, int]], db: sqlite3.Connection, workdir: Path
     client, cluster = dask_client(args.scheduler, args.jobs, len(todo))
     try:
         threads = sum(client.nthreads().values())
+        code = code_version()
         futures = {
-            client.submit(one_axis, c, s, workdir, args.timeout, threads, pure=False): (c, s)
+            client.submit(one_axis, c, s, workdir, args.timeout, threads, code, pure=False): (c, s)
             for c, s in todo
         }
         for fut in as_completed(futures):
@@ -756,7 +800,7 @@ def main(argv: list[str] | None = None) -> int:
         if case == "torque_offset":
             for line in offset_lines(records):
                 print("  " + line)
-    for line in speed_lines(every):
+    for line in speed_lines(every) + code_lines(every):
         print("  " + line)
     return 0
 

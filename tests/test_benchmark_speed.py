@@ -8,20 +8,11 @@ target.
 
 from __future__ import annotations
 
-import functools
-import importlib.util
-from pathlib import Path
-
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks" / "identify_reference.py"
+from reference_benchmark import reference_benchmark
 
 
-@functools.cache
 def _speed_lines():
-    """The script's `speed_lines`, the script loaded once (it is not a package module)."""
-    spec = importlib.util.spec_from_file_location("identify_reference_bench", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.speed_lines
+    return reference_benchmark().speed_lines
 
 
 def _axis(identify_s: float, axes_at_once: int | None) -> dict:
