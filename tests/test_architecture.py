@@ -378,9 +378,9 @@ LONG_FUNCTIONS = {
     # The fast model's batched loop over samples (Eq. 6): the hot path of
     # identification, one friction-law evaluation per sample (issue 11, item 1).
     "isp_twin/model/axis_model.py::simulate",
-    # The reference simulator's integrator: one loop over samples, sub-steps
-    # and events whose closures share its local state (docs/reference_simulator.md).
-    "isp_twin/reference/axis.py::simulate",
+    # The reference simulator's integrator, compiled: one loop over samples,
+    # sub-steps and events sharing its local state (docs/reference_simulator.md).
+    "isp_twin/reference/axis.py::_integrate",
     # Report writers and the residual analysis: a report is a list of
     # sections (issue 8 item 5 moved the intervals, BIC and parameter file
     # into isp_twin/estimation/ and split lm_steps into sub-generators).

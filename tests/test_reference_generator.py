@@ -20,10 +20,10 @@ from isp_twin.model.parameters import REGIMES, RateParams
 from isp_twin.reference import EFFECT_NAMES, RUN_NAMES, design_experiment, draw_axis
 from isp_twin.reference.experiment import MAX_ANGLE_DEG, MIN_FOOTPRINT_SIGMA, MIN_MOVING
 
-ALLOWED = {"numpy", "scipy", "isp_twin.errors", "isp_twin.reference"}
+ALLOWED = {"numpy", "scipy", "numba", "isp_twin.errors", "isp_twin.reference"}
 
 
-def test_the_package_imports_only_stdlib_numpy_scipy_and_errors():
+def test_the_package_imports_only_stdlib_numpy_scipy_numba_and_errors():
     package = Path(reference.__file__).parent
     modules = sorted(package.glob("*.py"))
     assert len(modules) >= 6

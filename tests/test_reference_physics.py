@@ -232,3 +232,19 @@ def test_a_non_finite_command_is_refused_naming_the_sample():
     u[7] = np.nan
     with pytest.raises(ParameterError, match="sample 7"):
         simulate(linear_axis(), u, seed=None)
+
+
+def test_a_runaway_stops_at_the_sample_where_the_rate_passes_the_limit():
+    """A frictionless axis driven to 5000 rad/s passes the 1000 rad/s runaway
+    limit at t = -tau ln(1 - 1000/5000) = 11.2 ms (tau = 50 ms): the end of
+    sample 11, the first whose end state is checked past it."""
+    from isp_twin.errors import SimulationDiverged
+
+    axis = linear_axis(gain=1.0)  # w_inf = 1.0 * 1000 / 0.2 = 5000 rad/s
+    with pytest.raises(SimulationDiverged, match=r"at sample 11 \(rate 1\.0\de\+03 rad/s\)"):
+        simulate(axis, np.full(100, 1000.0), seed=None)
+
+
+def test_an_effect_the_simulator_does_not_know_is_refused():
+    with pytest.raises(ParameterError, match="unknown effect"):
+        simulate(linear_axis(), np.zeros(10), effects=(object(),), seed=None)

@@ -2,7 +2,7 @@
 
 It shares no code with the project's models (`friction`, `axis_model`,
 `effects`, `twin`, `parameters`): it imports only the standard library, numpy,
-scipy and `isp_twin.errors`, so fitting the project's model to its data tests
+scipy, numba (its integrator is compiled) and `isp_twin.errors`, so fitting the project's model to its data tests
 the fit rather than the code that made the data. See docs/reference_simulator.md.
 
 Modules: `axis` (continuous-time physics, integrator, stick logic, sensors),
