@@ -248,3 +248,25 @@ def test_a_runaway_stops_at_the_sample_where_the_rate_passes_the_limit():
 def test_an_effect_the_simulator_does_not_know_is_refused():
     with pytest.raises(ParameterError, match="unknown effect"):
         simulate(linear_axis(), np.zeros(10), effects=(object(),), seed=None)
+
+
+def test_the_compiled_angle_torques_are_the_effects_own_bit_for_bit():
+    """The integrator evaluates the angle torques from a parameter table
+    (`axis._angle_torque`); each must be its class's ``torque_nm`` exactly,
+    alone and summed in the order given."""
+    from isp_twin.reference.axis import _angle_torque, _torque_table
+
+    torques = (
+        fx.Cogging(amplitude_nm=0.013, period_rad=2 * math.pi / 37, phase_rad=0.7),
+        fx.CableSpring(stiffness_nm_rad=0.21, centre_rad=-0.05),
+        fx.Unbalance(amplitude_nm=0.04, phase_rad=-1.1),
+        fx.TorqueOffset(torque_offset_nm=-0.008),
+    )
+    angles = np.random.default_rng(3).uniform(-0.6, 0.6, 200)
+    for chosen in [(t,) for t in torques] + [torques]:
+        codes, table = _torque_table(chosen)
+        for theta in angles:
+            expected = 0.0
+            for t in chosen:
+                expected += t.torque_nm(float(theta))
+            assert _angle_torque(codes, table, float(theta)) == expected

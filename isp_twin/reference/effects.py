@@ -10,7 +10,10 @@ the project's effect code: the equations are written again from the physics.
 Kinds, as `isp_twin.reference.axis.simulate` applies them:
 
 * angle torques (`Cogging`, `CableSpring`, `Unbalance`, `TorqueOffset`):
-  ``torque_nm(theta)`` [N·m], evaluated at every integration step;
+  ``torque_nm(theta)`` [N·m], evaluated at every integration step. The
+  compiled integrator takes their parameters from a table and evaluates the
+  same expressions (`axis._angle_torque`);
+  `tests/test_reference_physics.py` checks that the two agree bit for bit;
 * command path (`InputDelay`, then `Deadzone`, `Saturation`): the amplifier's
   input on the integration grid (a delay is continuous time, rounded to the
   integration step, so it can be a fraction of a sample);
