@@ -34,10 +34,11 @@ diagnose JSON holds rmse_after and noise_floor in rad/s.
 Results go to an SQLite file keyed by (case, seed): an interrupted run
 resumes, a finished one reprints its table. Each record holds the commit of
 the checkout that ran it (`code_version`, ``+modified`` for uncommitted
-changes to the product or this script): a table that pools several says so. Axes run as Dask tasks: a local
-cluster of ``--jobs`` worker processes (default one per core), or the workers
-of a running scheduler (``--scheduler tcp://host:8786``) for the 40-axes-per-case
-study that outgrows one 2-core machine.
+changes to the product or this script): a table that pools several says
+so. Axes run as Dask tasks: a local cluster of ``--jobs`` worker processes
+(default one per core), or the workers of a running scheduler
+(``--scheduler tcp://host:8786``) for the 40-axes-per-case study that
+outgrows one 2-core machine.
 
     python benchmarks/identify_reference.py --axes 3 --jobs 2 --db reference.sqlite
 """
@@ -53,6 +54,7 @@ import statistics
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -187,10 +189,7 @@ def code_version(root: Path = ROOT) -> str:
 def code_lines(records: list[dict]) -> list[str]:
     """Which code made the stored records: a database resumed across sessions
     pools only the axes of one commit unless it says otherwise."""
-    counts: dict[str, int] = {}
-    for r in records:
-        key = r.get("code", "not recorded")
-        counts[key] = counts.get(key, 0) + 1
+    counts = Counter(r.get("code", "not recorded") for r in records)
     made = ", ".join(f"{k} ({n} axes)" for k, n in sorted(counts.items()))
     if len(counts) > 1:
         return [f"code: the table pools records of {len(counts)} code versions: {made}"]

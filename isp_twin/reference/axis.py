@@ -372,8 +372,8 @@ def _read_sensors(out, regime, u, gyro_errors, sensors: Sensors, dt: float, seed
         omega=omega,
         omega_clean=omega_clean,
         theta=theta,
-        rate=rate.copy(),
-        angle=angle.copy(),
+        rate=rate,
+        angle=angle,
         regime=regime,
     )
 
