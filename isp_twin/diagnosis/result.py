@@ -25,6 +25,7 @@ from isp_twin.units import DEG
 
 __all__ = [
     "RoundResult",
+    "TrainingExplained",
     "Diagnosis",
     "rms_of",
 ]
@@ -55,6 +56,39 @@ class RoundResult:
     @property
     def model(self) -> CandidateFit:
         return self.fits[self.selected] if self.selected != BASELINE else self.baseline
+
+
+@dataclass(frozen=True)
+class TrainingExplained:
+    """Why effects were adopted with the held-out error above the noise:
+    with them the model fits the training runs at the noise and removes
+    most of the held-out excess (`search.EXPLAINED_SHARE`).
+
+    Attributes:
+        training_over_noise: training RMS error of the model with the
+            effects over the noise floor.
+        excess_removed: share of the refit without an effect's held-out
+            mean-square excess over the noise floor that the effects remove.
+    """
+
+    training_over_noise: float
+    excess_removed: float
+
+    def sentence(self, effects: str) -> str:
+        """The verdict's explanation of the adoption."""
+        return (
+            f"NOT CONVERGED held out, though the model with {effects} fits the training "
+            f"runs at {self.training_over_noise:.2f} x the noise floor and removes "
+            f"{100.0 * self.excess_removed:.2f} % of the held-out excess over the noise: "
+            "the held-out run goes where the training runs leave the model undetermined "
+            "(add a training run that covers it)"
+        )
+
+    def to_json(self) -> dict:
+        return {
+            "training_over_noise_floor": self.training_over_noise,
+            "held_out_excess_removed": self.excess_removed,
+        }
 
 
 @dataclass(frozen=True)
@@ -89,6 +123,8 @@ class Diagnosis:
         side_angle: the angle whose sign chose each sample's half-plane:
             ``fused`` (the measured angle fused with the integrated gyro),
             ``resolver`` (the angle as read), or a fixed ``right``/``left``.
+        explained: set where the effects were adopted though the held-out
+            error stays above `CONVERGED_RATIO` (`TrainingExplained`).
     """
 
     axis: str
@@ -110,6 +146,7 @@ class Diagnosis:
     equivalent: tuple[str, ...] = ()
     implied_torque_offset: ImpliedOffset | None = None
     side_angle: str = "fused"
+    explained: TrainingExplained | None = None
 
     @property
     def accepted(self) -> tuple[CandidateFit, ...]:
@@ -155,18 +192,20 @@ class Diagnosis:
         """Whether the final model is at the noise, and the effects set aside."""
         ratio = self.rmse_after / self.noise_floor if self.noise_floor > 0 else float("inf")
         converged = bool(ratio <= CONVERGED_RATIO)
+        if converged:
+            why = "the model is at the noise"
+        elif self.explained is not None:
+            why = self.explained.sentence(", ".join(f.name for f in self.accepted))
+        else:
+            why = (
+                "NOT CONVERGED: the model has not converged or lacks an effect the "
+                "library does not have (try more --iterations, other runs, or a new effect)"
+            )
         return {
             "converged": converged,
             "rmse_over_noise_floor": ratio,
-            "verdict": (
-                f"held-out RMS error {ratio:.2f} x the noise floor: "
-                + (
-                    "the model is at the noise"
-                    if converged
-                    else "NOT CONVERGED: the model has not converged or lacks an effect the "
-                    "library does not have (try more --iterations, other runs, or a new effect)"
-                )
-            ),
+            "verdict": f"held-out RMS error {ratio:.2f} x the noise floor: {why}",
+            "training_explained": None if self.explained is None else self.explained.to_json(),
             "tentative_effects": list(self.tentative),
             "equivalent_effects": list(self.equivalent),
             "equivalent_torque_offset": _offset_json(self.implied_torque_offset),

@@ -17,7 +17,10 @@ effect (significant, not at the noise) is judged once more, beside its
 rivals, at the gyro read-out that fits it better (`_tentative_read_out`);
 a tentative payload resonance, with its rates identified with its mode
 held, on the side (fused or raw angle) where it fits better
-(`_payload_side`).
+(`_payload_side`). Where none of that adopts an effect at the noise, the
+first pass's effects are adopted, not converged, if the model with them fits
+the training runs at the noise and removes most of the held-out excess
+(`_explains_training`).
 
 Options of `diagnose`:
     max_iter: Levenberg-Marquardt iterations per fit (8: LuGre's bristle
@@ -87,7 +90,7 @@ from isp_twin.diagnosis.prepared_runs import (
     stacked,
 )
 from isp_twin.diagnosis.residual import analyse
-from isp_twin.diagnosis.result import Diagnosis, rms_of
+from isp_twin.diagnosis.result import Diagnosis, TrainingExplained, rms_of
 from isp_twin.diagnosis.rounds import (
     ALIKE,
     COMMAND_EFFECTS,
@@ -116,7 +119,7 @@ from isp_twin.model.parameters import (
 )
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
 
-__all__ = ["DEFAULT_ITERATIONS", "diagnose"]
+__all__ = ["DEFAULT_ITERATIONS", "EXPLAINED_SHARE", "diagnose"]
 
 #: Levenberg-Marquardt iterations per refit (8: LuGre needs them, docs/diagnosis.md).
 DEFAULT_ITERATIONS = 8
@@ -131,6 +134,13 @@ READ_OUT_RIVALS = 3
 #: if it adopts an effect at the noise). 10 % until stop 27; benchmark cable
 #: spring seed 22 gains 2.9 % there and reaches the noise.
 FLIP_GAIN = 0.01
+#: Share of the held-out mean-square excess over the noise that effects must
+#: remove, the training runs at the noise with them, to be adopted though the
+#: held-out error stays above `CONVERGED_RATIO` (`_explains_training`). Chosen
+#: on stop 44's effect axes 302-306 (the right effect tentative on 13: it
+#: removed 76-99.99 %, 9 of them over 99 %) and stop 43's clean axes 280-299
+#: (the best candidate of the two not at the noise removed 0 and 20 %).
+EXPLAINED_SHARE = 0.9
 
 
 def diagnose(
@@ -175,15 +185,29 @@ def diagnose(
     before_held = given_held(data, x_file)
     rounds = _rounds(data, x_start, remaining, max_rounds, joint, reopen, base_search)
     diag = _final_diagnosis(data, params, axis, rounds, before_held)
-    again = _tentative_read_out(diag, data) if joint else None
+    if joint:
+        diag = _judged_again(diag, data, checked, params, options, before_held)
+    if diag.tentative and diag.selected_effect == BASELINE:
+        # Nowhere at the noise held out: the first rounds' effects adopted
+        # if they explain the training runs (`_explains_training`).
+        kept = _final_diagnosis(data, params, axis, rounds, before_held, keep_explained=True)
+        if kept.explained is not None:
+            return kept
+    return diag
+
+
+def _judged_again(diag, data, checked, params, options, before_held) -> Diagnosis:
+    """A tentative effect judged again at its own read-out, beside its
+    rivals (`_tentative_read_out`), and a tentative payload resonance on
+    its side (`_payload_side`); each kept if it adopts an effect."""
+    again = _tentative_read_out(diag, data)
     if again is not None:
-        # A tentative effect judged again at its own read-out, beside its
-        # rivals (kept if one is adopted there).
+        side_source, seed, integration, _, base_search, max_iter, cv_iter = options
         data2 = _prepared(
             checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
         )[0]
         diag = _at_read_out(diag, data, data2, again, params, before_held)
-    side = _payload_side(diag, data, checked[1]) if joint else None
+    side = _payload_side(diag, data, checked[1])
     if side is None:
         return diag
     moved = side.train is not data.train  # the other angle's stack, not the fit's own
@@ -468,10 +492,13 @@ def _rounds(data, x_current, remaining, max_rounds, joint, reopen, base_search) 
     return rounds
 
 
-def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
-    """The final model: tentative effects set aside, the plain refit judged
-    against the given parameters, the parameter set updated."""
-    rounds, accepted, tentative = _set_aside_tentative(rounds)
+def _final_diagnosis(
+    data, params, axis, rounds, before_held, keep_explained: bool = False
+) -> Diagnosis:
+    """The final model: tentative effects set aside (kept where they explain
+    the training runs and `keep_explained`: `_explains_training`), the plain
+    refit judged against the given parameters, the parameter set updated."""
+    rounds, accepted, tentative, explained = _adopted(rounds, keep_explained)
     equivalent = equivalent_effects(rounds[0], data.train) if accepted else ()
     train, ax = data.train, data.ax
     x_file, given_fixed = ax.rate_params().to_vector(), tuple(ax.effects)
@@ -519,6 +546,7 @@ def _final_diagnosis(data, params, axis, rounds, before_held) -> Diagnosis:
         equivalent=equivalent,
         implied_torque_offset=None if accepted else _implied_offset(first.baseline, data),
         side_angle=_side_angle(data),
+        explained=explained,
     )
 
 
@@ -556,6 +584,63 @@ def _set_aside_tentative(rounds) -> tuple[list, list, tuple[str, ...]]:
             rounds = [replace(r, selected=BASELINE, holdout_after=r.holdout_before) for r in rounds]
             return rounds, [], tentative
     return rounds, accepted, ()
+
+
+def _adopted(
+    rounds, keep_explained: bool
+) -> tuple[list, list, tuple[str, ...], TrainingExplained | None]:
+    """(rounds, accepted rounds, tentative effects, `TrainingExplained` or
+    None): tentative effects set aside (`_set_aside_tentative`), or kept
+    where they explain the training runs and `keep_explained`."""
+    kept = _explains_training(rounds) if keep_explained else None
+    if kept is None:
+        return (*_set_aside_tentative(rounds), None)
+    rounds, explained = kept
+    return rounds, [r for r in rounds if r.selected != BASELINE], (), explained
+
+
+def _explains_training(rounds) -> tuple[list, TrainingExplained] | None:
+    """(rounds, record) where the accepted effects leave the held-out error
+    above the noise (`_set_aside_tentative`) but explain the training runs
+    (`_explained_by`): all of them, else the first ones, the later rounds'
+    set aside; None where no accepted round does.
+
+    Then no base misfit is left on the training runs for the effects to
+    stand in for, and what stays held out lies where the training runs do
+    not determine the model: a regime the training runs barely visit and
+    the held-out run crosses at length (reference sensor bias seed 305,
+    regime L-: 687 training samples moving, 2218 held out; the bias found
+    to 0.2 %, held out 233 -> 3.6 noise floors; the true model reads 1.02).
+    """
+    accepted_at = [i for i, r in enumerate(rounds) if r.selected != BASELINE]
+    for i in reversed(accepted_at):
+        got = _explained_by(rounds[i], rounds[0])
+        if got is not None:
+            later = [
+                replace(r, selected=BASELINE, holdout_after=r.holdout_before)
+                for r in rounds[i + 1 :]
+            ]
+            return [*rounds[: i + 1], *later], got
+    return None
+
+
+def _explained_by(rnd, first) -> TrainingExplained | None:
+    """The record where the model of the accepted round `rnd` fits the
+    training runs within `CONVERGED_RATIO` noise floors and removes at least
+    `EXPLAINED_SHARE` of the held-out mean-square excess over the noise of
+    `first` round's refit without an effect, its held-out error still above
+    `CONVERGED_RATIO`; else None."""
+    floor = first.noise_floor
+    model = rnd.model
+    train = float(np.sqrt(model.sse / model.n_samples)) / floor
+    before = rms_of(first.holdout_before) / floor
+    after = rms_of(rnd.holdout_after) / floor
+    if not (train <= CONVERGED_RATIO and before > after > CONVERGED_RATIO):
+        return None
+    removed = 1.0 - (after**2 - 1.0) / (before**2 - 1.0)
+    if not removed >= EXPLAINED_SHARE:
+        return None
+    return TrainingExplained(train, removed)
 
 
 def _updated_axis(ax: AxisParams, fit: CandidateFit, record: FittedWith) -> AxisParams:
