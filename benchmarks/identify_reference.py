@@ -307,6 +307,8 @@ def one_axis(
     rec["diagnose_heldout_over_noise"] = diag["rmse_after"] / (sigma * DEG)
     rec["diagnose_tentative"] = list(diag.get("tentative_effects", []))
     rec["diagnose_equivalent"] = list(diag.get("equivalent_effects", []))
+    # adopted though not at the noise held out (docs/diagnosis.md "Stop 45")
+    rec["diagnose_training_explained"] = diag.get("training_explained") is not None
     if case == "torque_offset":
         rec.update(offset_equivalence(truth, diag, rec["diagnose_heldout_over_noise"]))
     if case != "clean" and selected == case:
