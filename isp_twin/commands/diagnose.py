@@ -19,7 +19,12 @@ from isp_twin.commands.progress import working
 from isp_twin.diagnosis.prepared_runs import FIXED_SIDE
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
-from isp_twin.estimation.coverage import beyond_training, reach_sentence
+from isp_twin.estimation.coverage import (
+    beyond_training,
+    reach_sentence,
+    thin_sentence,
+    thin_training,
+)
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
@@ -166,12 +171,15 @@ def execute(args: argparse.Namespace) -> int:
 
 def _with_coverage(result: dict, train, holdout, noise_floor: float) -> None:
     """The regimes where the held-out runs go faster than the training runs
-    (`beyond_training`) into `result`, and into its verdict where the model
-    is not at the noise."""
+    (`beyond_training`) or move far more often (`thin_training`) into
+    `result`, and into its verdict where the model is not at the noise."""
     beyond = beyond_training(train, holdout, noise_floor)
+    thin = thin_training(train, holdout, noise_floor)
     result["held_out_beyond_training"] = [b.to_json() for b in beyond]
-    if beyond and not result["converged"]:
-        result["verdict"] += ". " + reach_sentence(beyond).strip()
+    result["held_out_thin_in_training"] = [t.to_json() for t in thin]
+    said = (reach_sentence(beyond) + thin_sentence(thin)).strip()
+    if said and not result["converged"]:
+        result["verdict"] += ". " + said
 
 
 def _side_from_file(

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from isp_twin.estimation.coverage import RegimeReach, reach_sentence
+from isp_twin.estimation.coverage import RegimeReach, RegimeShare, reach_sentence, thin_sentence
 from isp_twin.units import DEG
 
 __all__ = [
@@ -149,6 +149,8 @@ class FitVerdict:
             training sets do not (`isp_twin.estimation.coverage.beyond_training`).
         spread: per held-out set, its error at the models the training
             sets allow (`HeldOutSpread`; identify's verdict).
+        thin: the regimes the held-out sets move in far more than the
+            training sets (`isp_twin.estimation.coverage.thin_training`).
     """
 
     rmse: Mapping[str, float]
@@ -158,6 +160,7 @@ class FitVerdict:
     advice: str
     beyond: tuple[RegimeReach, ...] = ()
     spread: tuple[HeldOutSpread, ...] = ()
+    thin: tuple[RegimeShare, ...] = ()
 
     def ratio(self, name: str) -> float:
         floor = self.noise_floor[name]
@@ -205,6 +208,7 @@ class FitVerdict:
             },
             "advice": self.advice,
             "held_out_beyond_training": [b.to_json() for b in self.beyond],
+            "held_out_thin_in_training": [t.to_json() for t in self.thin],
             "held_out_spread": [json_safe(s.to_json()) for s in self.spread],
         }
 
@@ -216,17 +220,19 @@ def fit_verdict(
     advice: str = "",
     beyond: Sequence[RegimeReach] = (),
     spread: Sequence[HeldOutSpread] = (),
+    thin: Sequence[RegimeShare] = (),
 ) -> FitVerdict:
     """Judge per-set RMS errors [rad/s] against per-set noise floors [rad/s];
     where not converged, the advice opens with the held-out sets the
     training sets leave open (`HeldOutSpread.open`, of those above the
-    limit) and the regimes `beyond` the training speeds (`reach_sentence`)."""
+    limit), the regimes `beyond` the training speeds (`reach_sentence`) and
+    those the training runs move in `thin`ly (`thin_sentence`)."""
     ratios = {n: rmse[n] / noise_floor[n] if noise_floor[n] > 0 else math.inf for n in rmse}
     converged = bool(ratios) and all(r <= CONVERGED_RATIO for r in ratios.values())
     undetermined = "".join(
         s.sentence() for s in spread if s.open and ratios.get(s.run, 0.0) > CONVERGED_RATIO
     )
-    said = "" if converged else undetermined + reach_sentence(beyond) + advice
+    said = "" if converged else undetermined + reach_sentence(beyond) + thin_sentence(thin) + advice
     return FitVerdict(
         dict(rmse),
         dict(noise_floor),
@@ -235,6 +241,7 @@ def fit_verdict(
         said,
         tuple(beyond),
         tuple(spread),
+        tuple(thin),
     )
 
 

@@ -12,7 +12,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from isp_twin.estimation.coverage import beyond_training
+from isp_twin.estimation.coverage import beyond_training, thin_training
 from isp_twin.estimation.simulation_error import stack_runs
 from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
 from isp_twin.identification.cost import rmse, simulate_data
@@ -87,25 +87,27 @@ def identification_verdict(
 ) -> FitVerdict:
     """Training and validation RMS errors against each set's noise floor;
     the advice names the regimes where the validation runs leave the
-    training runs' speeds (`beyond_training`) and a payload mode the
-    sensors show (`payload_hint`)."""
+    training runs' speeds (`beyond_training`) or move far more often
+    (`thin_training`), and a payload mode the sensors show (`payload_hint`)."""
     rmse_all = dict(result.rmse_train)
     rmse_all.update({k: v * DEG for k, v in rmse_table(result, validation).items()})
     floors = {d.name: noise_floor_of([d.omega]) for d in list(train) + list(validation)}
     side = result.settings.side_source
-    beyond = beyond_training(
+    coverage = (
         sides_as_read(train, side),
         sides_as_read(validation, side),
         noise_floor_of([d.omega for d in train]),
     )
+    beyond, thin = beyond_training(*coverage), thin_training(*coverage)
     names = [d.name for d in validation]
     spread = held_out_spread(result, train, validation)
-    verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond, spread)
+    verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond, spread, thin)
     if verdict.converged or any(e.name == "resonance" for e in result.effects):
         return verdict
     # Only a fit that has not converged gets advice: the runs are stacked
     # for the hint only then (a long log costs a stack of its length).
-    return fit_verdict(rmse_all, floors, names, payload_hint(train) + ADVICE, beyond, spread)
+    hinted = payload_hint(train) + ADVICE
+    return fit_verdict(rmse_all, floors, names, hinted, beyond, spread, thin)
 
 
 def payload_hint(runs: Sequence[MeasuredData]) -> str:
