@@ -42,7 +42,7 @@ def _run(name: str, counts: dict[str, int], rest: int = 0) -> MeasuredData:
 
 
 def test_the_regime_the_held_out_run_moves_in_six_times_as_often_is_named():
-    # Sensor bias 305's shares: L- 5.7 % of the training samples, 37 % held out.
+    # Sensor bias 305's shares: L- 5.7 % of the training samples, 36-37 % held out.
     train = [_run("t1", {"R+": 2000, "R-": 2000, "L-": 342}, rest=1658)]
     held = [_run("h", {"R+": 1000, "R-": 1000, "L-": 2220}, rest=1780)]
     out = thin_training(train, held, FLOOR)

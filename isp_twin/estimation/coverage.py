@@ -22,7 +22,7 @@ as a fit or an effect to look for.
 share of their samples while a held-out run spends `THIN_RATIO` times that
 share there: within the training speeds, but fitted from few samples. On
 reference axis 305 (docs/diagnosis.md "Stop 45") the training runs move in
-regime L- for 5.7 % of their samples, the held-out run for 37 %; with the
+regime L- for 5.7 % of their samples, the held-out run for 36 %; with the
 right effect found to 0.2 %, the fit of L- is 7-28 % off and misses the
 held-out run by 3.6 noise floors, the truth by 1.02.
 
