@@ -118,14 +118,19 @@ class RegimeShare:
         }
 
 
+def _pooled(runs) -> tuple[np.ndarray, np.ndarray]:
+    """(rate [rad/s], regime index) of every sample of the runs, pooled."""
+    omega = np.concatenate([np.asarray(d.omega, float) for d in runs])
+    angle = np.concatenate([np.asarray(d.angle, float) for d in runs])
+    return omega, regime_index(angle, omega)
+
+
 def _moving_share(runs, noise_floor: float) -> np.ndarray:
     """Per regime index: the share of the runs' samples moving there (faster
     than `MIN_REACH_FLOORS` noise floors)."""
-    omega = np.concatenate([np.asarray(d.omega, float) for d in runs])
-    angle = np.concatenate([np.asarray(d.angle, float) for d in runs])
+    omega, regime = _pooled(runs)
     moving = np.abs(omega) > MIN_REACH_FLOORS * noise_floor
-    regime = regime_index(angle, omega)[moving]
-    return np.bincount(regime, minlength=len(REGIMES)) / max(omega.size, 1)
+    return np.bincount(regime[moving], minlength=len(REGIMES)) / max(omega.size, 1)
 
 
 def thin_training(
@@ -163,9 +168,7 @@ def thin_sentence(thin: Sequence[RegimeShare]) -> str:
 
 def _reach(runs) -> dict[int, tuple[float, int]]:
     """Per regime index: (speed reached [rad/s], samples), over the runs pooled."""
-    omega = np.concatenate([np.asarray(d.omega, float) for d in runs])
-    angle = np.concatenate([np.asarray(d.angle, float) for d in runs])
-    regime = regime_index(angle, omega)
+    omega, regime = _pooled(runs)
     out = {}
     for r in range(len(REGIMES)):
         speed = np.abs(omega[regime == r])
