@@ -190,9 +190,9 @@ def diagnose(
     if diag.tentative and diag.selected_effect == BASELINE:
         # Nowhere at the noise held out: the first rounds' effects adopted
         # if they explain the training runs (`_explains_training`).
-        kept = _final_diagnosis(data, params, axis, rounds, before_held, keep_explained=True)
-        if kept.explained is not None:
-            return kept
+        kept = _explains_training(rounds)
+        if kept is not None:
+            return _final_diagnosis(data, params, axis, rounds, before_held, kept)
     return diag
 
 
@@ -493,12 +493,13 @@ def _rounds(data, x_current, remaining, max_rounds, joint, reopen, base_search) 
 
 
 def _final_diagnosis(
-    data, params, axis, rounds, before_held, keep_explained: bool = False
+    data, params, axis, rounds, before_held, kept: tuple | None = None
 ) -> Diagnosis:
-    """The final model: tentative effects set aside (kept where they explain
-    the training runs and `keep_explained`: `_explains_training`), the plain
-    refit judged against the given parameters, the parameter set updated."""
-    rounds, accepted, tentative, explained = _adopted(rounds, keep_explained)
+    """The final model: tentative effects set aside, or kept where they
+    explain the training runs (`kept`: `_explains_training`'s rounds and
+    record), the plain refit judged against the given parameters, the
+    parameter set updated."""
+    rounds, accepted, tentative, explained = _adopted(rounds, kept)
     equivalent = equivalent_effects(rounds[0], data.train) if accepted else ()
     train, ax = data.train, data.ax
     x_file, given_fixed = ax.rate_params().to_vector(), tuple(ax.effects)
@@ -587,12 +588,11 @@ def _set_aside_tentative(rounds) -> tuple[list, list, tuple[str, ...]]:
 
 
 def _adopted(
-    rounds, keep_explained: bool
+    rounds, kept: tuple | None
 ) -> tuple[list, list, tuple[str, ...], TrainingExplained | None]:
     """(rounds, accepted rounds, tentative effects, `TrainingExplained` or
-    None): tentative effects set aside (`_set_aside_tentative`), or kept
-    where they explain the training runs and `keep_explained`."""
-    kept = _explains_training(rounds) if keep_explained else None
+    None): tentative effects set aside (`_set_aside_tentative`), or, given
+    `kept` (`_explains_training`), its rounds' effects adopted."""
     if kept is None:
         return (*_set_aside_tentative(rounds), None)
     rounds, explained = kept

@@ -125,12 +125,12 @@ def _pooled(runs) -> tuple[np.ndarray, np.ndarray]:
     return omega, regime_index(angle, omega)
 
 
-def _moving_share(runs, noise_floor: float) -> np.ndarray:
-    """Per regime index: the share of the runs' samples moving there (faster
-    than `MIN_REACH_FLOORS` noise floors)."""
+def _moving(runs, noise_floor: float) -> tuple[np.ndarray, int]:
+    """(per regime index, the runs' samples moving there (faster than
+    `MIN_REACH_FLOORS` noise floors); the runs' samples in all, at least 1)."""
     omega, regime = _pooled(runs)
     moving = np.abs(omega) > MIN_REACH_FLOORS * noise_floor
-    return np.bincount(regime[moving], minlength=len(REGIMES)) / max(omega.size, 1)
+    return np.bincount(regime[moving], minlength=len(REGIMES)), max(omega.size, 1)
 
 
 def thin_training(
@@ -141,12 +141,11 @@ def thin_training(
     `beyond_training`; at least `MIN_SAMPLES` held-out samples moving there)."""
     if not train or not held_out:
         return ()
-    seen, held = _moving_share(train, noise_floor), _moving_share(held_out, noise_floor)
-    n_held = sum(len(d.omega) for d in held_out)
+    (seen, n_seen), (held, n_held) = _moving(train, noise_floor), _moving(held_out, noise_floor)
     return tuple(
-        RegimeShare(name, float(seen[r]), float(held[r]))
+        RegimeShare(name, float(seen[r] / n_seen), float(held[r] / n_held))
         for r, name in enumerate(REGIMES)
-        if held[r] * n_held >= MIN_SAMPLES and held[r] > THIN_RATIO * seen[r]
+        if held[r] >= MIN_SAMPLES and held[r] / n_held > THIN_RATIO * seen[r] / n_seen
     )
 
 
