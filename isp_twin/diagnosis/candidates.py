@@ -218,7 +218,9 @@ def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> tuple[dict,
     one batch at the current rate parameters; each candidate's best guess.
     A candidate with `Effect.refined_starts` gets a list of starts: its best
     guess and those, each with the friction levels lowered by the sliding
-    friction it brings (`_friction_lowered`), its rate starts as rows."""
+    friction it brings (`_friction_lowered`), its rate starts as rows; one
+    with `Effect.every_guess_refined` its best guess and every other, all
+    at the current rate parameters."""
     if context is None:
         one = predict_one(stack, x_rate, fixed)
         context = residual_context(stack, one, x_rate)
@@ -239,13 +241,15 @@ def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> tuple[dict,
     }
     rate_starts = {}
     for n in need:
-        more = [_clipped(classes[n], g) for g in classes[n].refined_starts(context)]
-        if more:
+        cls = classes[n]
+        rest = [g for g in guesses[n] if g is not starts[n]] if cls.every_guess_refined else []
+        more = [_clipped(cls, g) for g in cls.refined_starts(context)]
+        if rest or more:
             lowered = _friction_lowered(
-                x_rate, classes[n], more, stack.dt, context.friction_deficit_rad_s2
+                x_rate, cls, more, stack.dt, context.friction_deficit_rad_s2
             )
-            starts[n] = [starts[n], *more]
-            rate_starts[n] = np.vstack([x_rate, lowered])
+            starts[n] = [starts[n], *rest, *more]
+            rate_starts[n] = np.vstack([np.tile(x_rate, (1 + len(rest), 1)), lowered])
     return starts, rate_starts
 
 

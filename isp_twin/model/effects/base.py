@@ -125,6 +125,12 @@ class Effect:
         inverse of `measure` where it has one; the reading itself by default)."""
         return reading
 
+    #: Whether the diagnosis refines every one of the `guesses`, not only the
+    #: one a simulation at the current rate parameters ranks best: for a
+    #: parameter whose guesses lie in separate basins a local fit cannot move
+    #: between (cogging's period), which a base far from the noise cannot rank.
+    every_guess_refined: ClassVar[bool] = False
+
     @classmethod
     def refined_starts(cls, ctx) -> list[dict[str, float]]:
         """Starts the diagnosis refines with the rate parameters beside the

@@ -33,6 +33,12 @@ class Cogging(Effect):
     }
 
     acceleration_uses_rate = False
+    # The periodogram's peaks are separate basins of the period: at a base
+    # far from the noise a simulation ranks them by its base error, not by
+    # the ripple (stop 45's cogging axis 308: the 115-per-turn peak, the
+    # truth, ranked below a 211-per-turn one, whose fit ended 100 times
+    # higher in training cost; docs/diagnosis.md "Stop 46").
+    every_guess_refined = True
 
     def acceleration(self, angle, rate):
         p = self.params
