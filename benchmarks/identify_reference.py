@@ -21,7 +21,9 @@ print one table row per case:
 * time per command: median and max [s]; timeouts and failures. The issue's
   speed targets are for one command on 2 cores: they are judged on the axes
   run one at a time (``--jobs 1``); with more workers the commands share the
-  cores and their times are printed, not judged (`speed_lines`);
+  cores and their times are printed, not judged (`speed_lines`); each
+  command runs numba on this machine's cores shared by the axes at once
+  (`command_threads`, stored as ``numba_threads``; from stop 46);
 * torque offset, a second scoring beside the first: an equivalent ``none``
   counted as right where the offset is exactly a shift of the friction
   levels (`offset_equivalence`, docs/diagnosis.md "Sensor bias and torque
