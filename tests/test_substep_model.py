@@ -246,6 +246,17 @@ def _run_kernel(kernel, case, m, mid, split, by_drive, tail=(), per_sample=False
     return [*out, w, y]
 
 
+@pytest.fixture
+def all_threads():
+    """numba on all its threads for the test (conftest gives each xdist
+    worker its share of the cores, which may be one: no thread would run
+    beside another and a race between blocks could not show)."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    yield numba.get_num_threads()
+    numba.set_num_threads(before)
+
+
 @pytest.mark.parametrize(
     "m, mid, split, side, by_drive",
     [(10, True, True, "taught", True), (10, True, True, "own", False),
@@ -280,17 +291,6 @@ def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(
     for name, got in runs.items():
         for a, b in zip(ref, got):
             assert np.array_equal(a, b), name
-
-
-@pytest.fixture
-def all_threads():
-    """numba on all its threads for the test (conftest gives each xdist
-    worker its share of the cores, which may be one: no thread would run
-    beside another and a race between blocks could not show)."""
-    before = numba.get_num_threads()
-    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-    yield numba.get_num_threads()
-    numba.set_num_threads(before)
 
 
 @pytest.mark.parametrize("parallel", [True, False])
