@@ -216,40 +216,41 @@ def _best_per_candidate(layouts, fits, scales) -> tuple[list, list, list]:
 def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> tuple[dict, dict]:
     """The global step: every guess of every candidate in `need` simulated in
     one batch at the current rate parameters; each candidate's best guess.
-    A candidate with `Effect.refined_starts` gets a list of starts: its best
-    guess and those, each with the friction levels lowered by the sliding
-    friction it brings (`_friction_lowered`), its rate starts as rows; one
-    with `Effect.every_guess_refined` its best guess and every other, all
-    at the current rate parameters."""
+    A candidate with `Effect.every_guess_refined` is not ranked: every guess
+    is a start, at the current rate parameters. One with
+    `Effect.refined_starts` gets those as well, each with the friction
+    levels lowered by the sliding friction it brings (`_friction_lowered`);
+    several starts come as a list, their rate starts as rows."""
     if context is None:
         one = predict_one(stack, x_rate, fixed)
         context = residual_context(stack, one, x_rate)
     guesses = {}
     for n in need:
         guesses[n] = [_clipped(classes[n], g) for g in classes[n].guesses(context)]
+    ranked = [n for n in need if not classes[n].every_guess_refined]
     reqs = [
         (
             np.tile(x_rate, (len(guesses[n]), 1)),
             n,
             {p: np.array([g[p] for g in guesses[n]]) for p in classes[n].param_names},
         )
-        for n in need
+        for n in ranked
     ]
-    starts: dict = {
-        n: guesses[n][int(np.argmin(np.einsum("ij,ij->i", res, res)))]
-        for n, res in zip(need, residuals_many(stack, reqs, fixed))
+    best = {
+        n: [guesses[n][int(np.argmin(np.einsum("ij,ij->i", res, res)))]]
+        for n, res in zip(ranked, residuals_many(stack, reqs, fixed) if reqs else [])
     }
-    rate_starts = {}
+    starts, rate_starts = {}, {}
     for n in need:
         cls = classes[n]
-        rest = [g for g in guesses[n] if g is not starts[n]] if cls.every_guess_refined else []
+        first = best.get(n, guesses[n])
         more = [_clipped(cls, g) for g in cls.refined_starts(context)]
-        if rest or more:
-            lowered = _friction_lowered(
-                x_rate, cls, more, stack.dt, context.friction_deficit_rad_s2
-            )
-            starts[n] = [starts[n], *rest, *more]
-            rate_starts[n] = np.vstack([np.tile(x_rate, (1 + len(rest), 1)), lowered])
+        if len(first) == 1 and not more:
+            starts[n] = first[0]
+            continue
+        lowered = _friction_lowered(x_rate, cls, more, stack.dt, context.friction_deficit_rad_s2)
+        starts[n] = [*first, *more]
+        rate_starts[n] = np.vstack([np.tile(x_rate, (len(first), 1)), lowered])
     return starts, rate_starts
 
 
