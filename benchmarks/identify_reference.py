@@ -66,7 +66,7 @@ sys.path.insert(0, str(ROOT))
 
 from isp_twin.errors import IspTwinError  # noqa: E402
 from isp_twin.experiments.sweep.execute import dask_client  # noqa: E402
-from isp_twin.reference import EFFECT_NAMES, RUN_NAMES  # noqa: E402
+from isp_twin.reference import EFFECT_NAMES, HELD_OUT_DESIGNS, RUN_NAMES  # noqa: E402
 
 CASES = ("clean", *EFFECT_NAMES)
 TIMEOUT_S = 120.0
@@ -212,6 +212,15 @@ def code_lines(records: list[dict]) -> list[str]:
     return [f"code: {made}"]
 
 
+def design_lines(records: list[dict]) -> list[str]:
+    """Which held-out design the stored records used (records before stop 47
+    have none stored: ``free``)."""
+    counts = Counter(r.get("held_out_design", "free") for r in records)
+    made = ", ".join(f"{k} ({n} axes)" for k, n in sorted(counts.items()))
+    pooled = f"the table pools {len(counts)} designs: " if len(counts) > 1 else ""
+    return [f"held-out design: {pooled}{made}"]
+
+
 def one_axis(
     case: str,
     seed: int,
@@ -219,6 +228,7 @@ def one_axis(
     timeout_s: float = TIMEOUT_S,
     axes_at_once: int = 1,
     code: str = "unknown",
+    held_out: str = "free",
 ) -> dict:
     """Draw, write, identify, diagnose one axis; the record stored in the database.
 
@@ -226,7 +236,8 @@ def one_axis(
     with this machine's core count: the command times mean the issue's
     "on 2 cores" only where one axis ran at a time (`speed_lines`). `code`:
     the checkout's `code_version`, stored so that results resumed across
-    sessions say which code made them (`code_lines`).
+    sessions say which code made them (`code_lines`). `held_out`: the
+    reference's held-out design (`isp_twin.reference.HELD_OUT_DESIGNS`).
     """
     import yaml
 
@@ -239,9 +250,10 @@ def one_axis(
     rec["cores"] = os.cpu_count()
     rec["numba_threads"] = command_threads(axes_at_once)
     rec["code"] = code
+    rec["held_out_design"] = held_out
     start = time.perf_counter()
     try:
-        exp = design_experiment(seed, None if case == "clean" else case)
+        exp = design_experiment(seed, None if case == "clean" else case, held_out=held_out)
     except IspTwinError as exc:
         rec["error"] = f"design: {exc}"
         return rec
@@ -689,7 +701,9 @@ def _run_axes(todo: list[tuple[str, int]], db: sqlite3.Connection, workdir: Path
         threads = sum(client.nthreads().values())
         code = code_version()
         futures = {
-            client.submit(one_axis, c, s, workdir, args.timeout, threads, code, pure=False): (c, s)
+            client.submit(
+                one_axis, c, s, workdir, args.timeout, threads, code, args.held_out, pure=False
+            ): (c, s)
             for c, s in todo
         }
         for fut in as_completed(futures):
@@ -744,6 +758,14 @@ def main(argv: list[str] | None = None) -> int:
         default=TIMEOUT_S,
         help="per command [s] (the issue's limit is 120 s; on a loaded machine a longer one "
         "still measures accuracy, and runs over 120 s are counted)",
+    )
+    p.add_argument(
+        "--held-out",
+        choices=HELD_OUT_DESIGNS,
+        default="free",
+        help="design of the held-out run: free (drawn like the training runs, may go faster "
+        "than them; every stop before 47) or covered (within the training speeds in each "
+        "regime; docs/identification.md 'Stop 47'). Store each design in its own --db",
     )
     p.add_argument(
         "--report-only", action="store_true", help="print the table of the stored results"
@@ -818,7 +840,7 @@ def main(argv: list[str] | None = None) -> int:
         if case == "torque_offset":
             for line in offset_lines(records):
                 print("  " + line)
-    for line in speed_lines(every) + code_lines(every):
+    for line in speed_lines(every) + code_lines(every) + design_lines(every):
         print("  " + line)
     return 0
 

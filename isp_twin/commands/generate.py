@@ -52,7 +52,7 @@ def add_parser(sub) -> None:
 
 
 def execute(args) -> int:
-    if args.reference or args.effect is not None:
+    if args.reference or args.effect is not None or args.held_out is not None:
         return execute_reference(args)
     params_path = args.params or default_parameters_path()
     if args.which == "paper":

@@ -31,16 +31,24 @@ def add_reference_options(p: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help="with --reference: one library effect on the drawn axis, or none (default)",
     )
+    p.add_argument(
+        "--held-out",
+        default=None,
+        metavar="DESIGN",
+        help="with --reference: free (default; drawn like the training runs, may go faster "
+        "than they do) or covered (within the training speeds in each regime)",
+    )
 
 
 def execute_reference(args: argparse.Namespace) -> int:
     import yaml
 
-    from isp_twin.reference import EFFECT_NAMES, RUN_NAMES, design_experiment
+    from isp_twin.reference import EFFECT_NAMES, HELD_OUT_DESIGNS, RUN_NAMES, design_experiment
 
     if not args.reference:
+        given = "--effect" if args.effect is not None else "--held-out"
         raise ParameterError(
-            "--effect needs --reference (it names an effect of the reference simulator)"
+            f"{given} needs --reference (it sets up the reference simulator's experiment)"
         )
     effect = args.effect or "none"
     if effect != "none" and effect not in EFFECT_NAMES:
@@ -50,7 +58,13 @@ def execute_reference(args: argparse.Namespace) -> int:
         )
     if args.seed < 0:
         raise ParameterError(f"--seed must be >= 0 with --reference, got {args.seed}")
-    experiment = design_experiment(args.seed, effect)
+    held_out = args.held_out or "free"
+    if held_out not in HELD_OUT_DESIGNS:
+        raise ParameterError(
+            f"--held-out '{held_out}'{nearest(held_out, HELD_OUT_DESIGNS)}; "
+            f"expected one of {', '.join(HELD_OUT_DESIGNS)}"
+        )
+    experiment = design_experiment(args.seed, effect, held_out=held_out)
     truth = experiment.truth()
     paths = []
     for name in RUN_NAMES:

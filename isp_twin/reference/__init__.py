@@ -23,7 +23,13 @@ from isp_twin.reference.axis import (
 )
 from isp_twin.reference.draw import COMMAND_SCALE_DIGITS, EFFECT_NAMES, DrawnAxis, draw_axis
 from isp_twin.reference.excitation import KINDS, Excitation
-from isp_twin.reference.experiment import RUN_NAMES, ReferenceExperiment, design_experiment
+from isp_twin.reference.experiment import (
+    HELD_OUT_DESIGNS,
+    RUN_NAMES,
+    ReferenceExperiment,
+    design_experiment,
+    regime_reach,
+)
 from isp_twin.reference.truth import rate_form, truth_record
 
 __all__ = [
@@ -40,8 +46,10 @@ __all__ = [
     "KINDS",
     "Excitation",
     "RUN_NAMES",
+    "HELD_OUT_DESIGNS",
     "ReferenceExperiment",
     "design_experiment",
+    "regime_reach",
     "rate_form",
     "truth_record",
 ]

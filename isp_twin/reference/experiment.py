@@ -9,6 +9,18 @@ centred on 0 (both half-planes). If no run qualifies the axis is redrawn
 (`attempt` + 1, at most `MAX_AXIS_ATTEMPTS`). With an effect, the effect must
 move the noise-free gyro reading of the training runs by at least
 `MIN_FOOTPRINT_SIGMA` noise sigmas RMS, otherwise the axis is redrawn too.
+
+Two designs of the held-out run (`HELD_OUT_DESIGNS`, from stop 47):
+
+* ``free`` (the default, and every stored seed before stop 47): the held-out
+  run is drawn like the training runs, and may go faster than they do;
+* ``covered``: the held-out run must stay, in each regime, within the speeds
+  the training runs reach there (`regime_reach`, by the true rate and
+  regime); a run that goes beyond is drawn again with its peak scaled down.
+  Above the training speeds the training runs do not determine the friction
+  law (docs/identification.md "Stop 37"), so a miss there says nothing about
+  the fit. This design judges the fit on what the training runs hold, as an
+  experimenter who trains over the operating range would.
 """
 
 from __future__ import annotations
@@ -32,7 +44,10 @@ __all__ = [
     "MIN_FOOTPRINT_SIGMA",
     "MAX_AXIS_ATTEMPTS",
     "RUN_NAMES",
+    "HELD_OUT_DESIGNS",
+    "REACH_QUANTILE",
     "ReferenceExperiment",
+    "regime_reach",
     "design_experiment",
 ]
 
@@ -50,6 +65,10 @@ MAX_RUN_TRIES = 8
 #: 0.5 Hz; above a few Hz a fast axis's rate stops being smooth at 1 kHz.
 MAX_FREQ_HZ = {"cosine": 5.0, "multisine": 3.0, "steps": 20.0}
 RUN_NAMES: tuple[str, ...] = ("train1", "train2", "heldout")
+#: Designs of the held-out run (see the module docstring).
+HELD_OUT_DESIGNS: tuple[str, ...] = ("free", "covered")
+#: A regime's reach: this quantile of |true rate| over its moving samples.
+REACH_QUANTILE = 0.99
 _DEG = math.pi / 180.0
 
 
@@ -64,6 +83,7 @@ class ReferenceExperiment:
         footprint_sigma: RMS change of the training gyro reading caused by the
             effect, in noise sigmas (0 without an effect).
         substeps: integration steps per sample used.
+        held_out: the design of the held-out run (`HELD_OUT_DESIGNS`).
     """
 
     drawn: DrawnAxis
@@ -71,6 +91,7 @@ class ReferenceExperiment:
     runs: dict[str, ReferenceRun]
     footprint_sigma: float
     substeps: int
+    held_out: str = "free"
 
     def truth(self) -> dict:
         """The truth record (see `isp_twin.reference.truth`) with the runs described."""
@@ -84,6 +105,7 @@ class ReferenceExperiment:
             "effect": d.effect,
             "noise_sigma_deg_s": d.sensors.gyro_noise_rad_s / _DEG,
             "footprint_sigma": self.footprint_sigma,
+            "held_out_design": self.held_out,
             **rec,
             "runs": {
                 name: {
@@ -107,13 +129,20 @@ def design_experiment(
     n_samples: int = N_SAMPLES,
     dt: float = 1e-3,
     substeps: int = 10,
+    held_out: str = "free",
 ) -> ReferenceExperiment:
-    """Draw an axis and choose its three runs (reproducible for a seed and effect).
+    """Draw an axis and choose its three runs (reproducible for a seed, effect
+    and held-out design; ``free`` gives the runs of every stop before 47).
 
     Raises:
-        ParameterError: unknown effect; or no qualifying experiment after
-            `MAX_AXIS_ATTEMPTS` draws (the message names seed and effect).
+        ParameterError: unknown effect or held-out design; or no qualifying
+            experiment after `MAX_AXIS_ATTEMPTS` draws (the message names seed
+            and effect).
     """
+    if held_out not in HELD_OUT_DESIGNS:
+        raise ParameterError(
+            f"held-out design '{held_out}': expected one of {', '.join(HELD_OUT_DESIGNS)}"
+        )
     for attempt in range(MAX_AXIS_ATTEMPTS):
         drawn = draw_axis(seed, effect, attempt)
         rng = np.random.default_rng([seed, attempt, 1000])
@@ -121,7 +150,10 @@ def design_experiment(
         for i, name in enumerate(RUN_NAMES):
             kind = "cosine" if name.startswith("train") else ("multisine", "steps")[rng.integers(2)]
             noise_seed = int(np.random.SeedSequence([seed, attempt, 2000 + i]).generate_state(1)[0])
-            found = _design_run(drawn, kind, rng, n_samples, dt, substeps, noise_seed)
+            cap = None
+            if held_out == "covered" and name == "heldout":
+                cap = regime_reach([runs[n] for n in RUN_NAMES[:2]])
+            found = _design_run(drawn, kind, rng, n_samples, dt, substeps, noise_seed, cap)
             if found is None:
                 break
             excitations[name], runs[name] = found
@@ -129,11 +161,26 @@ def design_experiment(
             footprint = _footprint(drawn, excitations, runs, substeps)
             if drawn.effects and footprint < MIN_FOOTPRINT_SIGMA:
                 continue
-            return ReferenceExperiment(drawn, excitations, runs, footprint, substeps)
+            return ReferenceExperiment(drawn, excitations, runs, footprint, substeps, held_out)
+    covered = " and a held-out run within the training speeds" if held_out == "covered" else ""
     raise ParameterError(
-        f"reference seed {seed}, effect {effect or 'none'}: no experiment visiting all four "
+        f"reference seed {seed}, effect {effect or 'none'}{covered}: no experiment visiting all four "
         f"regimes (>= {MIN_MOVING} moving samples each, |angle| < {MAX_ANGLE_DEG:g} deg) "
         f"after {MAX_AXIS_ATTEMPTS} axis draws"
+    )
+
+
+def regime_reach(runs: list[ReferenceRun]) -> np.ndarray:
+    """Per regime (`REGIME_NAMES` order), the `REACH_QUANTILE` of |true rate|
+    over the runs' moving samples there [rad/s], 0 where they never move;
+    shape (4,)."""
+    regime = np.concatenate([r.regime for r in runs])
+    speed = np.abs(np.concatenate([r.rate for r in runs]))
+    return np.array(
+        [
+            float(np.quantile(speed[regime == k], REACH_QUANTILE)) if np.any(regime == k) else 0.0
+            for k in range(4)
+        ]
     )
 
 
@@ -149,8 +196,13 @@ def _design_run(
     dt: float,
     substeps: int,
     noise_seed: int,
+    reach_cap: np.ndarray | None = None,
 ) -> tuple[Excitation, ReferenceRun] | None:
-    """An excitation of `kind` whose run qualifies, or None after `MAX_RUN_TRIES`."""
+    """An excitation of `kind` whose run qualifies, or None after `MAX_RUN_TRIES`.
+
+    With `reach_cap` (per regime [rad/s]) the run qualifies only within it
+    (`regime_reach`); beyond it, the next draw's peak is scaled down by the
+    worst regime's excess, with a 10 % margin."""
     # Frequency scale: raised when the travel is too long, lowered when the
     # axis hardly moves (a slow axis needs slow commands to break away).
     scale = 1.0
@@ -182,7 +234,11 @@ def _design_run(
             seed=noise_seed,
         )
         if np.max(np.abs(run.angle)) < limit and np.all(run.moving_per_regime() >= MIN_MOVING):
-            return ex, run
+            excess = 0.0 if reach_cap is None else _excess(regime_reach([run]), reach_cap)
+            if excess <= 1.0:
+                return ex, run
+            amplitude_scale *= 0.9 / excess
+            continue
         if np.count_nonzero(run.regime >= 0) < 4 * MIN_MOVING:
             scale *= 0.6
     return None
@@ -203,6 +259,13 @@ def _draw_excitation(
     else:
         amp, freq = peak, min(_log(rng, 2.0, 8.0) * scale, MAX_FREQ_HZ[kind])
     return Excitation(kind, amp, freq, offset, 0.0, n, dt, seed=int(rng.integers(2**31)))
+
+
+def _excess(reach: np.ndarray, cap: np.ndarray) -> float:
+    """The largest ratio of a regime's reach to its cap (inf where the cap is 0)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(reach > 0.0, reach / cap, 0.0)
+    return float(np.max(ratio))
 
 
 def _probe_start(drawn: DrawnAxis, u: np.ndarray, dt: float, limit: float) -> tuple[float, float]:
