@@ -158,3 +158,35 @@ def test_reference_sensor_bias_305_is_adopted_not_converged(tmp_path):
     fitted = d.accepted[0].params
     assert fitted["bias_rad_s"] == pytest.approx(true["bias_rad_s"], rel=0.1)
     assert fitted["scale"] == pytest.approx(true["scale"], rel=0.1)
+
+
+@pytest.mark.parametrize(
+    ("train", "adopted"),
+    [(1.06, "cable_spring"), (1.6, None)],
+)
+def test_the_read_out_round_adopts_an_effect_that_explains_the_training_runs(
+    monkeypatch, train, adopted
+):
+    """The round at the read-out a tentative effect chose (`_adopted_there`)
+    applies the same rule (from stop 47): benchmark cable spring 312 at
+    stop 46 reached 1.06 noise floors on the training runs and 716 -> 1.88
+    held out there, and answered `none`. The round and the final model are
+    stand-ins: the test pins the decision, `_final_diagnosis` its input."""
+    rnd = _rounds(train, 716.0, 1.88, name="cable_spring")[0]
+    monkeypatch.setattr(search, "_rival_starts", lambda diag, data, again: {})
+    monkeypatch.setattr(search, "round_at_read_out", lambda there, starts, fixed: rnd)
+
+    def final(data, params, axis, rounds, before_held, kept=None):
+        assert rounds == [rnd]
+        chosen = "none" if kept is None else kept[0][0].selected
+        return SimpleNamespace(selected_effect=chosen, explained=None if kept is None else kept[1])
+
+    monkeypatch.setattr(search, "_final_diagnosis", final)
+    there = SimpleNamespace(ax=SimpleNamespace(effects=()))
+    before = SimpleNamespace(selected_effect="none", tentative=("unbalance",), axis="inner_az")
+    got = search._adopted_there(before, None, there, None, None, _held(716.0))
+    if adopted is None:
+        assert got is before  # left as it was: the unbalance tentative
+    else:
+        assert got.selected_effect == adopted
+        assert got.explained.training_over_noise == pytest.approx(train)
