@@ -161,11 +161,16 @@ def test_reference_sensor_bias_305_is_adopted_not_converged(tmp_path):
 
 
 @pytest.mark.parametrize(
-    ("train", "adopted"),
-    [(1.06, "cable_spring"), (1.6, None)],
+    ("train", "tentative", "adopted"),
+    [
+        (1.06, ("unbalance",), "cable_spring"),
+        (1.6, ("unbalance",), None),
+        # two effects tentative: the one-round read-out would drop the second
+        (1.06, ("unbalance", "sensor_bias"), None),
+    ],
 )
 def test_the_read_out_round_adopts_an_effect_that_explains_the_training_runs(
-    monkeypatch, train, adopted
+    monkeypatch, train, tentative, adopted
 ):
     """The round at the read-out a tentative effect chose (`_adopted_there`)
     applies the same rule (from stop 47): benchmark cable spring 312 at
@@ -183,7 +188,7 @@ def test_the_read_out_round_adopts_an_effect_that_explains_the_training_runs(
 
     monkeypatch.setattr(search, "_final_diagnosis", final)
     there = SimpleNamespace(ax=SimpleNamespace(effects=()))
-    before = SimpleNamespace(selected_effect="none", tentative=("unbalance",), axis="inner_az")
+    before = SimpleNamespace(selected_effect="none", tentative=tentative, axis="inner_az")
     got = search._adopted_there(before, None, there, None, None, _held(716.0))
     if adopted is None:
         assert got is before  # left as it was: the unbalance tentative

@@ -339,11 +339,14 @@ def _adopted_there(diag, rivals_on, there, again, params, before_held) -> Diagno
     only at this read-out was left tentative: benchmark cable spring seed
     312 (stop 46), at this read-out 1.06 noise floors on the training runs
     and 716 -> 1.88 held out, answered `none` with the unbalance tentative
-    at 44 (docs/diagnosis.md "Stop 47")."""
+    at 44 (docs/diagnosis.md "Stop 47"). Only where the first rounds left a
+    single effect tentative: the read-out round judges one effect, and
+    adopting it would drop the others (the unbalance and gyro bias of
+    `tests/test_second_round.py`)."""
     starts = _rival_starts(diag, rivals_on, again)
     rnd = round_at_read_out(there, starts, tuple(there.ax.effects))
     diag2 = _final_diagnosis(there, params, diag.axis, [rnd], before_held)
-    if diag2.selected_effect == BASELINE:
+    if diag2.selected_effect == BASELINE and len(diag.tentative) == 1:
         kept = _explains_training([rnd])
         if kept is not None:
             diag2 = _final_diagnosis(there, params, diag.axis, [rnd], before_held, kept)
