@@ -27,7 +27,11 @@ print one table row per case:
 * torque offset, a second scoring beside the first: an equivalent ``none``
   counted as right where the offset is exactly a shift of the friction
   levels (`offset_equivalence`, docs/diagnosis.md "Sensor bias and torque
-  offset").
+  offset");
+* the reference's held-out design (``--held-out``, stored as
+  ``held_out_design``; from stop 47): ``free``, the default and the design
+  of every earlier figure, or ``covered``, the held-out run within the
+  training speeds in each regime (docs/identification.md "Stop 47").
 
 The identify JSON has no ``rmse_over_noise_floor`` today: the ratios are
 computed here from its RMS figures (deg/s) and the truth's noise sigma. The
