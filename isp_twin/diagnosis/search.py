@@ -345,11 +345,10 @@ def _adopted_there(diag, rivals_on, there, again, params, before_held) -> Diagno
     `tests/test_second_round.py`)."""
     starts = _rival_starts(diag, rivals_on, again)
     rnd = round_at_read_out(there, starts, tuple(there.ax.effects))
-    diag2 = _final_diagnosis(there, params, diag.axis, [rnd], before_held)
-    if diag2.selected_effect == BASELINE and len(diag.tentative) == 1:
-        kept = _explains_training([rnd])
-        if kept is not None:
-            diag2 = _final_diagnosis(there, params, diag.axis, [rnd], before_held, kept)
+    # `kept` is set only where the round's effect is above the noise held
+    # out, exactly where the plain diagnosis would set it aside.
+    kept = _explains_training([rnd]) if len(diag.tentative) == 1 else None
+    diag2 = _final_diagnosis(there, params, diag.axis, [rnd], before_held, kept)
     return diag2 if diag2.selected_effect != BASELINE else diag
 
 

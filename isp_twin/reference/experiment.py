@@ -234,7 +234,9 @@ def _design_run(
             seed=noise_seed,
         )
         if np.max(np.abs(run.angle)) < limit and np.all(run.moving_per_regime() >= MIN_MOVING):
-            excess = 0.0 if reach_cap is None else _excess(regime_reach([run]), reach_cap)
+            # The cap is positive in every regime: each training run moves
+            # there for MIN_MOVING samples at least.
+            excess = 0.0 if reach_cap is None else float(np.max(regime_reach([run]) / reach_cap))
             if excess <= 1.0:
                 return ex, run
             amplitude_scale *= 0.9 / excess
@@ -259,13 +261,6 @@ def _draw_excitation(
     else:
         amp, freq = peak, min(_log(rng, 2.0, 8.0) * scale, MAX_FREQ_HZ[kind])
     return Excitation(kind, amp, freq, offset, 0.0, n, dt, seed=int(rng.integers(2**31)))
-
-
-def _excess(reach: np.ndarray, cap: np.ndarray) -> float:
-    """The largest ratio of a regime's reach to its cap (inf where the cap is 0)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(reach > 0.0, reach / cap, 0.0)
-    return float(np.max(ratio))
 
 
 def _probe_start(drawn: DrawnAxis, u: np.ndarray, dt: float, limit: float) -> tuple[float, float]:
