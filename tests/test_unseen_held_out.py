@@ -49,7 +49,10 @@ def base_refit(monkeypatch):
 
     monkeypatch.setattr(rounds, "fit_candidate", refit, raising=False)
     monkeypatch.setattr(rounds, "_not_the_effect", lambda data, st, name: "")
-    monkeypatch.setattr(rounds, "_switched_off", lambda fit: fit)  # predicted by `_data`
+    # The switched-off fit: the limit at its null (infinity); predicted by `_data`.
+    monkeypatch.setattr(
+        rounds, "_switched_off", lambda fit: SimpleNamespace(params={"limit_digits": np.inf})
+    )
     return SimpleNamespace(calls=calls, result=result)
 
 
@@ -84,6 +87,16 @@ def test_where_the_held_out_runs_reach_it_the_held_out_rule_decides(base_refit):
     # by the held-out rule, and the training runs are not asked.
     off = [2.4 * FLOOR * RNG.standard_normal(3000)]
     out = _judged(off)
+    assert not out.significant
+    assert "switched off" in out.reason
+    assert base_refit.calls == []
+
+
+def test_an_effect_at_its_null_values_is_left_to_the_held_out_rule(base_refit, monkeypatch):
+    # A saturation limit at infinity is the model without it (as a delay of 0,
+    # tests/test_effect_itself.py): the same predictions, and no evidence.
+    monkeypatch.setattr(rounds, "_switched_off", lambda fit: fit)
+    out = _judged([OWN[0].copy()])
     assert not out.significant
     assert "switched off" in out.reason
     assert base_refit.calls == []

@@ -863,9 +863,13 @@ def _effect_itself(data, st, verdicts) -> list[Verdict]:
     sig = [v for v in verdicts if v.significant and v.name not in overruled]
     if not sig:
         return [overruled.get(v.name, v) for v in verdicts]
-    offs = data.held_residuals([_switched_off(st.fits[v.name]) for v in sig])
-    for v, held_off in zip(sig, offs):
-        if _unseen_held_out(held_off, st.held_of[v.name], st.floor):
+    off_fits = [_switched_off(st.fits[v.name]) for v in sig]
+    offs = data.held_residuals(off_fits)
+    for v, off, held_off in zip(sig, off_fits, offs):
+        # An effect fitted at its null values (a delay of 0) is the same
+        # model switched off: the held-out rule overrules it below.
+        at_null = dict(off.params) == dict(st.fits[v.name].params)
+        if not at_null and _unseen_held_out(held_off, st.held_of[v.name], st.floor):
             # The held-out runs cannot tell the effect from its absence:
             # the training runs judge it (`_training_needs_it`).
             why = _training_needs_it(data, st.fits[v.name])
