@@ -851,7 +851,9 @@ def _effect_itself(data, st, verdicts) -> list[Verdict]:
     from those and not from the effect (a dead zone of 0.4 digit on a clean
     axis, reference seed 12), the effect explains nothing and is not an
     answer. A real effect fails without itself: the rate parameters fitted
-    beside it do not stand in for it.
+    beside it do not stand in for it. Where the held-out runs never reach
+    the effect (`_unseen_held_out`), that comparison has no power, and the
+    training runs judge it (`_training_needs_it`).
     """
     overruled = {}
     for v in verdicts:
@@ -991,7 +993,7 @@ COMMAND_EFFECTS = frozenset({"deadzone", "input_delay", "saturation"})
 #: stop 48, the command effects. A saturation whose local refit fitted the
 #: training runs far better than the base (BIC 56 700 lower) but was 2.8
 #: standard errors better held out, not 3, never took a global step; the
-#: unbalance (BIC 340 lower) took it (benchmark saturation seed 320, covered
+#: cable spring (BIC 410 lower) took it (benchmark saturation seed 320, covered
 #: design: `none` at 87 noise floors held out -> saturation at 1.21, limit
 #: within 0.1 %; docs/diagnosis.md "Stop 48").
 TRAINING_LEADERS: tuple[str, ...] = TORQUE_GLOBAL + tuple(sorted(COMMAND_EFFECTS))
