@@ -14,6 +14,7 @@ is the gyro-only form (the truth with ``payload_fraction`` 0, what the
 library's `resonance` was before docs/diagnosis.md "Stop 18 R").
 
     python benchmarks/truth_held.py --effects lugre,resonance --seeds 1000-1005
+    python benchmarks/truth_held.py --effects none --seeds 327-330 --held-out covered
 """
 
 from __future__ import annotations
@@ -32,10 +33,10 @@ from isp_twin.units import DEG
 RUNS = ("train1", "train2", "heldout")
 
 
-def truth_held_row(seed: int, effect: str) -> dict[str, tuple[float, ...]]:
+def truth_held_row(seed: int, effect: str, held_out: str = "free") -> dict[str, tuple[float, ...]]:
     """Per run: (error without the effect[, gyro-only form], error with the
     true effect) / noise sigma; on a clean axis (`effect` none) only the first."""
-    exp = design_experiment(seed, effect)
+    exp = design_experiment(seed, None if effect == "none" else effect, held_out=held_out)
     truth = exp.truth()
     sigma = truth["noise_sigma_deg_s"] * DEG
     regimes = truth["rate_form"]["regimes"]
@@ -71,6 +72,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--effects", default="lugre,resonance")
     parser.add_argument("--seeds", default="1000-1005", help="e.g. 1000-1005 or 1000,1003")
+    parser.add_argument(
+        "--held-out",
+        default="free",
+        choices=("free", "covered"),
+        help="the held-out run's design (identify_reference.py's --held-out)",
+    )
     args = parser.parse_args()
     print(
         "| effect | seed | " + " | ".join(f"{n}: none [/ gyro-only] / truth" for n in RUNS) + " |"
@@ -78,7 +85,7 @@ def main() -> None:
     print("|---|---|" + "---|" * len(RUNS))
     for effect in args.effects.split(","):
         for seed in _seeds(args.seeds):
-            row = truth_held_row(seed, effect)
+            row = truth_held_row(seed, effect, args.held_out)
             cells = " | ".join(" / ".join(f"{v:.2f}" for v in row[n]) for n in RUNS)
             print(f"| {effect} | {seed} | {cells} |", flush=True)
 
