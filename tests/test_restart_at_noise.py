@@ -61,8 +61,11 @@ def test_without_the_restart_the_fit_stops_at_the_noise(fits):
 def test_restarted_it_reaches_the_noise_held_out(fits):
     res, errors = fits[True]
     assert max(errors) <= 1.3
-    # A restart can only keep or lower the training cost.
-    assert res.cost <= fits[False][0].cost
+    # A restart can only keep or lower the search's training cost (its
+    # history's last entry). `res.cost` is the cost at the stored point,
+    # rounded to the parameter file's digits, which may move it either way
+    # by a few millionths (2.7e-6 relative here with the side angle of stop 49).
+    assert res.history[-1] <= fits[False][0].history[-1]
 
 
 def test_the_restart_is_stated_in_the_status(fits):

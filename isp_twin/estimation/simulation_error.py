@@ -91,6 +91,10 @@ class RunStack:
         angle_step: each run's quantum of that measured angle [rad], (R,):
             its smallest non-zero change, 0 where it never changes
             (`deflection`); None: not known.
+        angle_plain: where ``angle`` is the fused one, the side angle of the
+            fusion alone, without the zero reading's edge anchors (R, N)
+            [rad], for rows with an effect that deflects the gyro from the
+            motor side (`_side_angles`); None: the same as ``angle``.
     """
 
     names: tuple[str, ...]
@@ -109,6 +113,7 @@ class RunStack:
     fusion_accel: np.ndarray | None = None
     deflection_rate: np.ndarray | None = None
     angle_step: np.ndarray | None = None
+    angle_plain: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
@@ -225,25 +230,30 @@ def stack_runs(
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
     stacked = (names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels)
-    known, accel = _resolver_columns(runs, shape)
+    known, accel, plain = _resolver_columns(runs, shape, angle)
     fused = known is not None
     follows = fused if side_follows_gyro is None else side_follows_gyro
     slip, steps = _deflection_rates(runs, shape, dt)
-    return RunStack(*stacked, follows, known, accel, slip, steps)
+    return RunStack(*stacked, follows, known, accel, slip, steps, plain)
 
 
-def _resolver_columns(runs: Sequence, shape: tuple[int, int]) -> tuple:
-    """`RunStack`'s resolver_side and fusion_accel, from the runs that carry
-    the fused angle with the resolver's beside it
-    (`side_angle.with_side_angle`); two Nones where none does."""
+def _resolver_columns(runs: Sequence, shape: tuple[int, int], angle: np.ndarray) -> tuple:
+    """`RunStack`'s resolver_side, fusion_accel and angle_plain (``angle``,
+    the stacked side angles, where a run has no plain one), from the runs
+    that carry the fused angle with the resolver's beside it
+    (`side_angle.with_side_angle`); three Nones where none does."""
     if all(getattr(r, "resolver", None) is None for r in runs):
-        return None, None
-    known, accel = np.zeros(shape, dtype=np.int8), np.zeros(shape)
+        return None, None, None
+    known, accel, plain = np.zeros(shape, dtype=np.int8), np.zeros(shape), angle.copy()
     for i, r in enumerate(runs):
         if getattr(r, "resolver", None) is not None:
-            known[i, : len(r.u)] = resolver_sides(r.resolver)
-            accel[i, : len(r.u)] = r.fusion_accel
-    return known, accel
+            m = len(r.u)
+            known[i, :m] = resolver_sides(r.resolver)
+            accel[i, :m] = r.fusion_accel
+            if getattr(r, "fusion_plain", None) is not None:
+                plain[i, :m] = r.fusion_plain
+                plain[i, m:] = r.fusion_plain[-1]
+    return known, accel, plain
 
 
 def _deflection_rates(
@@ -372,11 +382,16 @@ def _side_angles(stack: RunStack, effects: Sequence, p: int):
     sides (or None). The stack's angle; where it is the fused one and an
     effect deflects the gyro from the motor side, plus what the fusion's
     smoothing took off that deflection (`Effect.fusion_gain`), with the
-    sides the resolver settles. Rows without such an effect need neither."""
+    sides the resolver settles. Rows without such an effect need neither.
+    Rows with one take the fusion alone (`RunStack.angle_plain`): the zero
+    reading's edge anchors assume a gyro on the motor side."""
     angle = np.tile(stack.angle, (p, 1))
     gains = [g for g in (e.fusion_gain() for e in effects) if np.ndim(g)]
     if stack.fusion_accel is None or not stack.side_follows_gyro or not gains:
         return angle, None
+    if stack.angle_plain is not None:
+        deflected = np.any([np.asarray(g) != 0.0 for g in gains], axis=0)
+        angle[deflected] = np.tile(stack.angle_plain, (p, 1))[deflected]
     accel = np.tile(stack.fusion_accel, (p, 1))
     for gain in gains:
         angle += gain[:, None] * accel

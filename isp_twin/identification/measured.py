@@ -153,6 +153,9 @@ class MeasuredData:
             one (`isp_twin.identification.side_angle.with_side_angle`), else None.
         fusion_accel: there, the fusion window's mean of the rate's
             derivative [rad/s^2] (`Effect.fusion_gain`), else None.
+        fusion_plain: there, the side angle of the fusion alone [rad],
+            without the zero reading's edge anchors (for an effect that
+            deflects the gyro from the resolver's side), else None.
     """
 
     name: str
@@ -164,6 +167,7 @@ class MeasuredData:
     dt: float
     resolver: np.ndarray | None = None
     fusion_accel: np.ndarray | None = None
+    fusion_plain: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
