@@ -89,8 +89,8 @@ def test_the_side_of_the_rest_is_right_and_the_truth_reaches_the_noise_on_the_re
     """Over seeds: the rest's side is R, and the truth's error over the push
     back is at the noise (a slow crossing right after the rest leaves a
     fraction of a sample in its timing on some seeds). From the fusion alone
-    the rest's side was 0 (the push back's, L) or L on every seed, 13-24
-    noise sigmas over the push back (the code before stop 49)."""
+    the rest's side was 0 (the push back's, L) or L on every seed, 12.9-24.4
+    noise sigmas over the push back on seeds 0-4 (the code before stop 49)."""
     truth = true_rate_params(_axis())
     errors = []
     for seed in range(8):
