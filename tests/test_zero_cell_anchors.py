@@ -70,6 +70,13 @@ def test_the_rest_is_inside_the_zero_reading_and_on_the_right():
 def test_the_resolver_step_is_read_from_the_readings():
     data, _ = _run(0)
     assert np.isclose(resolver_step(data.angle), LSB, rtol=1e-9)
+    # Read back from a file that keeps 10 significant digits of degrees (the
+    # benchmark's CSV), far from 0: still the grid. The first version took
+    # the smallest gap as the step and asked for 1e-6 steps: it anchored
+    # nothing on the benchmark's runs beyond about 1 deg.
+    far = data.angle + 10_000 * LSB
+    printed = np.radians(np.array([float(f"{v:.10g}") for v in np.degrees(far)]))
+    assert np.isclose(resolver_step(printed), LSB, rtol=1e-7)
     assert resolver_step(data.angle + 0.1 * LSB) is None  # off the grid
     assert resolver_step(np.zeros(10)) is None  # one level only
 
