@@ -146,6 +146,13 @@ def zero_cell_anchors(data: MeasuredData, omega: np.ndarray) -> tuple[np.ndarray
     edges = _edges(data.angle, integral, step)
     bounds = np.flatnonzero(np.diff(np.concatenate(([0], zero.astype(np.int8), [0]))))
     for lo, hi in zip(bounds[::2], bounds[1::2]):
+        if lo == 0:
+            # A run that opens in the zero reading opens at rest there, and
+            # the rules of stop 41 read its side (`at_boundary`'s opening;
+            # Eq. 6 stepped once per sample keeps the fusion's): anchored
+            # too, the shipped twin model's inner_el R+ breakaway went from
+            # 2.197 (truth 2.194) to 5.49 (models/params/twin_identified.sh).
+            continue
         ks = np.arange(lo, hi)
         anchors = []
         for at, before in ((lo, True), (hi - 1, False)):
