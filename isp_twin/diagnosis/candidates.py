@@ -270,7 +270,9 @@ def _friction_lowered(x_rate, cls, guesses, dt: float, deficit: float = 0.0) -> 
     and Coulomb levels of every regime lowered by the sliding friction the
     guess brings (`Effect.sliding_friction_rad_s2`) beyond the `deficit`
     the residual shows (`ResidualContext.friction_deficit_rad_s2`) [rad/s^2],
-    times dt (rate per sample), to no less than `FRICTION_KEPT` of their value.
+    times dt (rate per sample), and by the regime's motor gain times the
+    drive the guess takes (`Effect.drive_taken_digits`), to no less than
+    `FRICTION_KEPT` of their value.
 
     A base fitted without a friction-like effect (LuGre's bristles) carries
     it in its levels: the guess added on top would double it and lose to
@@ -279,12 +281,15 @@ def _friction_lowered(x_rate, cls, guesses, dt: float, deficit: float = 0.0) -> 
     lowered by that part."""
     xs = np.tile(np.asarray(x_rate, float), (len(guesses), 1))
     brought = np.array([cls.sliding_friction_rad_s2(g) for g in guesses])
-    shift = np.maximum(brought - max(deficit, 0.0), 0.0) * dt
+    taken = np.array([cls.drive_taken_digits(g) for g in guesses])
+    gain = RATE_LAYOUT.column(np.asarray(x_rate, float), "gain")
+    # (G, regimes): per sample, as the levels are.
+    shift = np.maximum(brought - max(deficit, 0.0), 0.0)[:, None] * dt + taken[:, None] * gain
     if not shift.any():
         return xs
     for field in ("static", "coulomb"):
         idx = list(RATE_LAYOUT.field_indices(field))
-        xs[:, idx] = np.maximum(xs[:, idx] - shift[:, None], FRICTION_KEPT * xs[:, idx])
+        xs[:, idx] = np.maximum(xs[:, idx] - shift, FRICTION_KEPT * xs[:, idx])
     return xs
 
 

@@ -60,6 +60,9 @@ class ResidualContext:
         dt: sample period [s].
         coulomb_rad_s2: the model's sliding friction, the median over the
             regimes of its Coulomb level [rad/s^2] (NaN: not known).
+        coulomb_digits: the same in command digits, the median over the
+            regimes of the Coulomb level over the motor gain (NaN: not
+            known): the largest dead zone the model's levels can carry.
         friction_deficit_rad_s2: the sliding friction the model lacks, the
             mean of ``-accel * sign(rate)`` over the moving samples [rad/s^2]
             (0: not known). With `coulomb_rad_s2`, what a guess of a
@@ -79,6 +82,7 @@ class ResidualContext:
     run_id: np.ndarray
     dt: float
     coulomb_rad_s2: float = float("nan")
+    coulomb_digits: float = float("nan")
     friction_deficit_rad_s2: float = 0.0
     deflection_rate: np.ndarray | None = None
     deflection_lines: np.ndarray | None = None
@@ -93,7 +97,11 @@ def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
         rate_vector: the model's rate-form parameters (`RATE_LAYOUT.size`,).
     """
     pole = RATE_LAYOUT.column(rate_vector, "pole")
-    coulomb = float(np.median(RATE_LAYOUT.column(rate_vector, "coulomb"))) / stack.dt
+    levels = RATE_LAYOUT.column(rate_vector, "coulomb")
+    coulomb = float(np.median(levels)) / stack.dt
+    gain = RATE_LAYOUT.column(rate_vector, "gain")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        digits = float(np.median(levels / gain))
     res = stack.omega - resp.omega
     true = resp.omega if resp.omega_true is None else resp.omega_true
     a = np.asarray(pole)[resp.regime]
@@ -118,6 +126,7 @@ def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
         run_id=f(run_id),
         dt=stack.dt,
         coulomb_rad_s2=coulomb,
+        coulomb_digits=digits if np.isfinite(digits) and digits > 0.0 else float("nan"),
         friction_deficit_rad_s2=deficit if sliding.any() else 0.0,
         deflection_rate=deflection,
         deflection_lines=lines,

@@ -137,8 +137,8 @@ class Effect:
         best of the `guesses` (none by default): for an effect whose guesses
         a simulation at the current rate parameters cannot rank (LuGre: its
         bristle force trades against the friction levels those hold), each
-        with the levels lowered by its `sliding_friction_rad_s2`
-        (`isp_twin.diagnosis.candidates`)."""
+        with the levels lowered by its `sliding_friction_rad_s2` and
+        `drive_taken_digits` (`isp_twin.diagnosis.candidates`)."""
         return []
 
     @classmethod
@@ -146,6 +146,14 @@ class Effect:
         """The friction the effect adds in steady sliding, against the motion
         [rad/s^2] (0 by default; LuGre's bristle force): a base fitted without
         the effect carries it in its Coulomb and static levels."""
+        return 0.0
+
+    @classmethod
+    def drive_taken_digits(cls, params: Mapping[str, float]) -> float:
+        """The command the effect takes off a drive beyond it [digits] (0 by
+        default; a dead zone's width): in steady sliding a base fitted
+        without the effect carries the motor gain times it in its Coulomb
+        and static levels (`isp_twin.diagnosis.candidates`)."""
         return 0.0
 
     @classmethod

@@ -37,6 +37,36 @@ class Deadzone(Effect):
         top = float(np.max(np.abs(ctx.u))) or 1.0
         return [{"width_digits": f * top} for f in np.geomspace(cls.SMALLEST, 0.4, 40)]
 
+    #: Refined starts (`refined_starts`): these fractions of the widest dead
+    #: zone the base's friction levels can carry.
+    REFINED_SHARES = (0.2, 0.4, 0.6, 0.8)
+
+    @classmethod
+    def refined_starts(cls, ctx) -> list[dict[str, float]]:
+        """Widths at `REFINED_SHARES` of the base's Coulomb level in digits
+        (`ResidualContext.coulomb_digits`; none where it is not known), each
+        refined with the friction levels lowered by the motor gain times
+        the width (`drive_taken_digits`).
+
+        On the cosine runs a drive beyond the band loses the gain times the
+        width, as it loses the Coulomb friction while sliding: the base
+        carries the dead zone in its levels, and a width guessed at those
+        levels fits no better, however wide the band. Reference dead zone
+        334 (covered design, a 126-digit band): the base carries it in
+        levels 2.1-2.8 times the truth's, 1.02 noise floors on the training
+        runs and 10.9 held out; from the levels lowered by a 126- or
+        150-digit band, 1.008 and 1.005 with the width at 127
+        (docs/diagnosis.md "Stop 50")."""
+        top = ctx.coulomb_digits
+        if not np.isfinite(top):
+            return []
+        return [{"width_digits": float(f * top)} for f in cls.REFINED_SHARES]
+
+    @classmethod
+    def drive_taken_digits(cls, params) -> float:
+        """Beyond the band the drive loses the width."""
+        return float(params["width_digits"])
+
     @classmethod
     def negligible(cls, params, u_peak: float) -> str:
         """A width below `SMALLEST` of the largest command: what it changes is
