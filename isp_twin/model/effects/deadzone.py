@@ -55,8 +55,8 @@ class Deadzone(Effect):
         334 (covered design, a 126-digit band): the base carries it in
         levels 2.1-2.8 times the truth's, 1.02 noise floors on the training
         runs and 10.9 held out; from the levels lowered by a 126- or
-        150-digit band, 1.008 and 1.005 with the width at 127
-        (docs/diagnosis.md "Stop 50")."""
+        150-digit band, 1.0075 on the training runs and 1.005-1.015 held
+        out, the width at 127 (docs/diagnosis.md "Stop 50")."""
         top = ctx.coulomb_digits
         if not np.isfinite(top):
             return []
