@@ -14,11 +14,11 @@ raised by its gain times the true width.
 from __future__ import annotations
 
 import numpy as np
+from truth_error import measured_runs, truth_rate_vector
 
 from isp_twin.diagnosis.candidates import fit_candidates
 from isp_twin.diagnosis.prepared_runs import fused_runs
 from isp_twin.estimation.simulation_error import stack_runs
-from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.effects.deadzone import Deadzone
 from isp_twin.model.parameters import RATE_LAYOUT
@@ -31,14 +31,9 @@ SEED = 334  # reference dead zone 334, covered design: a 126-digit band
 def _case():
     exp = design_experiment(SEED, "deadzone", held_out="covered")
     truth = exp.truth()
-    regimes = truth["rate_form"]["regimes"]
-    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
+    x = truth_rate_vector(truth)
     width = truth["effects"][0]["params"]["width_digits"]
-    runs = [
-        MeasuredData(n, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])
-        for n, r in exp.runs.items()
-        if n != "heldout"
-    ]
+    runs = [d for n, d in measured_runs(exp).items() if n != "heldout"]
     train = stack_runs(
         fused_runs(runs, Timing(0.0, True), DEFAULT_INTEGRATION),
         side=None,

@@ -15,14 +15,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from truth_error import measured_runs, truth_rate_vector
 
 from isp_twin.diagnosis import prepared_runs
 from isp_twin.diagnosis.prepared_runs import fused_runs, side_choice
 from isp_twin.estimation.simulation_error import residuals, stack_runs
 from isp_twin.identification.cost import rmse
-from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
-from isp_twin.model.parameters import RATE_LAYOUT, AxisParams, EffectSpec, RateParams
+from isp_twin.model.parameters import AxisParams, EffectSpec, RateParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 from isp_twin.reference import design_experiment
 from isp_twin.units import DEG
@@ -35,12 +35,8 @@ def _axis(seed: int, effect: str):
     effect, the truth's effect, the gyro sigma [rad/s])."""
     exp = design_experiment(seed, effect, held_out="covered")
     truth = exp.truth()
-    regimes = truth["rate_form"]["regimes"]
-    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
-    runs = {
-        n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])
-        for n, r in exp.runs.items()
-    }
+    x = truth_rate_vector(truth)
+    runs = measured_runs(exp)
     effect_spec = EffectSpec(effect, truth["effects"][0]["params"])
     sigma = truth["noise_sigma_deg_s"] * DEG
     return [runs["train1"], runs["train2"]], [runs["heldout"]], x, effect_spec, sigma

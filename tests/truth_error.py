@@ -23,6 +23,24 @@ def true_rate_params(axis: Axis) -> RateParams:
     )
 
 
+def truth_rate_vector(truth: dict) -> np.ndarray:
+    """The rate vector (`RATE_LAYOUT`) of a reference experiment's truth
+    (`Experiment.truth()`), its regimes in the model's order."""
+    regimes = truth["rate_form"]["regimes"]
+    return np.concatenate(
+        [[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]]
+    )
+
+
+def measured_runs(exp) -> dict[str, MeasuredData]:
+    """A reference experiment's runs as measured data (the resolver's
+    reading as the angle), by run name."""
+    return {
+        n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])
+        for n, r in exp.runs.items()
+    }
+
+
 def truth_error(seed: int, effect: str, integration: Integration) -> list[float]:
     """The sub-stepped model in `integration` with the reference's true rate
     parameters and effects (axis `seed`, `effect`), at its gyro read-out:
@@ -30,15 +48,13 @@ def truth_error(seed: int, effect: str, integration: Integration) -> list[float]
     train1, train2)."""
     exp = design_experiment(seed, effect)
     truth = exp.truth()
-    regimes = truth["rate_form"]["regimes"]
-    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
+    x = truth_rate_vector(truth)
     effects = [EffectSpec(e["name"], e["params"]) for e in truth["effects"]]
     timing = Timing(0.0, truth["sensors"]["gyro_averaged"])
     sigma = truth["noise_sigma_deg_s"] * DEG
     out = []
-    for name, r in sorted(exp.runs.items()):
-        data = [MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])]
-        e = rmse(RateParams.from_vector(x), data, effects=effects, timing=timing,
+    for _, d in sorted(measured_runs(exp).items()):
+        e = rmse(RateParams.from_vector(x), [d], effects=effects, timing=timing,
                  integration=integration)  # fmt: skip
         out.append(float(e) / sigma)
     return out
