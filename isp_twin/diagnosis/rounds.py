@@ -150,8 +150,35 @@ def round_at_read_out(data: DiagnosisData, starts: dict, fixed) -> RoundResult:
     )
     base = fits.pop(BASELINE)
     st, verdicts = _judged(data, base, fits, names)
+    verdicts = _read_out_global_stage(data, st, verdicts)
     verdicts = _alike_stage(data, st, verdicts)
     return _acceptance(data, st, verdicts, False)
+
+
+def _read_out_global_stage(data, st, verdicts) -> list[Verdict]:
+    """The read-out round's leading significant effect, not at the noise
+    held out, refitted with `identify`'s global method and its effect held
+    (`_global_cycles`), as round 1 refits its leader (`_torque_global_stage`);
+    kept where the training cost drops, then judged again.
+
+    The round starts each effect from rates `identify` found with it held
+    and polishes them locally; from there the polish can stop far above
+    the noise where a second identification from the polished effect
+    reaches it: reference LuGre seed 337 (the read-out changed from the
+    point-sampled gyro to the averaged one; LuGre within 1 %, 6.2 noise
+    floors on the training runs; polished again from rates identified with
+    that LuGre held, 1.07; docs/diagnosis.md "Stop 51")."""
+    top = [v.name for v in verdicts if v.significant][:1]
+    if not top or top[0] not in READ_OUT_GLOBAL:
+        return verdicts
+    if rms_of(st.held_of[top[0]]) <= CONVERGED_RATIO * st.floor:
+        return verdicts
+    fit = st.fits[top[0]]
+    g = _global_cycles(data, _refit_globally(data, fit))
+    if not g.sse < fit.sse:
+        return verdicts
+    st.update(data, {top[0]: g})
+    return st.judged_again(verdicts, {top[0]: g})
 
 
 @dataclass(frozen=True, eq=False)
@@ -987,6 +1014,11 @@ def _as_base(fit: CandidateFit, base: CandidateFit) -> CandidateFit:
 #: (dev seeds saturation 1000-1005: right 4/6 -> 5/6, clean 1000-1005 still
 #: `none`; docs/diagnosis.md "Stop 18").
 COMMAND_EFFECTS = frozenset({"deadzone", "input_delay", "saturation"})
+
+#: Effects whose lead in a read-out round (`round_at_read_out`) takes the
+#: global step there (`_read_out_global_stage`): the torques and the command
+#: effects; a payload resonance has its own (`_payload_stage`).
+READ_OUT_GLOBAL: frozenset[str] = frozenset(TORQUE_GLOBAL) | COMMAND_EFFECTS
 
 #: Round 1's training leader, when no candidate is significant
 #: (`_training_leader`), is chosen among these: the torque effects and, since
