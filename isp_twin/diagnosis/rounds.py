@@ -165,9 +165,9 @@ def _read_out_global_stage(data, st, verdicts) -> list[Verdict]:
     and polishes them locally; from there the polish can stop far above
     the noise where a second identification from the polished effect
     reaches it: reference LuGre seed 337 (the read-out changed from the
-    point-sampled gyro to the averaged one; LuGre within 1 %, 6.2 noise
-    floors on the training runs; polished again from rates identified with
-    that LuGre held, 1.07; docs/diagnosis.md "Stop 51")."""
+    point-sampled gyro to the averaged one; 6.2 noise floors on the
+    training runs; polished again from rates identified with that LuGre
+    held, 1.08, the LuGre within 0.2 %; docs/diagnosis.md "Stop 51")."""
     top = [v.name for v in verdicts if v.significant][:1]
     if not top or top[0] not in READ_OUT_GLOBAL:
         return verdicts

@@ -373,7 +373,14 @@ def _others_there(there: DiagnosisData, rnd, tentative) -> list:
         return []
     model = rnd.model
     nxt = diagnosis_round(
-        there, model.rate_vector, model, others, model.effects(), False, False, False
+        there,
+        model.rate_vector,
+        model,
+        others,
+        model.effects(),
+        joint=False,
+        reopen=False,
+        base_search=False,
     )
     return [nxt]
 
