@@ -173,12 +173,8 @@ def _read_out_global_stage(data, st, verdicts) -> list[Verdict]:
         return verdicts
     if rms_of(st.held_of[top[0]]) <= CONVERGED_RATIO * st.floor:
         return verdicts
-    fit = st.fits[top[0]]
-    g = _global_cycles(data, _refit_globally(data, fit))
-    if not g.sse < fit.sse:
-        return verdicts
-    st.update(data, {top[0]: g})
-    return st.judged_again(verdicts, {top[0]: g})
+    g = _global_cycles(data, _refit_globally(data, st.fits[top[0]]))
+    return _kept_if_better(data, st, verdicts, {top[0]: g})[0]
 
 
 @dataclass(frozen=True, eq=False)
@@ -297,6 +293,18 @@ def _judged(data, base, fits, remaining) -> tuple[_RoundState, list[Verdict]]:
     return st, verdicts
 
 
+def _kept_if_better(data, st, verdicts, refits: dict) -> tuple[list, dict]:
+    """(the verdicts, the refits kept): the `refits` that fit the training
+    runs better than the candidates of `st` they refit, written in
+    (`_RoundState.update`) and judged again; the verdicts unchanged where
+    none does."""
+    better = {n: f for n, f in refits.items() if f.sse < st.fits[n].sse}
+    if not better:
+        return verdicts, better
+    st.update(data, better)
+    return st.judged_again(verdicts, better), better
+
+
 def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdict]:
     """Round 1: the leaders restarted from base and effect estimated together."""
     # Base and effect estimated together for the leaders (by local held-out
@@ -347,11 +355,8 @@ def _joint_stage(data, st, verdicts, remaining, x_current, fixed) -> list[Verdic
         # again with `identify`'s global method, its effect (now
         # estimated apart from the distorted base) held, then rate and
         # effect polished together; kept if the training cost drops.
-        n = top[0]
-        g = _refit_globally(data, st.fits[n])
-        if g.sse < st.fits[n].sse:
-            st.update(data, {n: g})
-            verdicts = st.judged_again(verdicts, {n: g})
+        g = _refit_globally(data, st.fits[top[0]])
+        verdicts = _kept_if_better(data, st, verdicts, {top[0]: g})[0]
     return _training_leader_too(data, st, verdicts, starts)
 
 
@@ -426,11 +431,8 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     # Each hold refitted once, the better one refitted again (`_global_cycles`).
     firsts = [_refit_globally(data, st.fits[top], held) for held in holds]
     g = _global_cycles(data, min(firsts, key=lambda f: f.sse))
-    if not g.sse < st.fits[top].sse:
-        return verdicts
-    st.update(data, {top: g})
-    verdicts = st.judged_again(verdicts, {top: g})
-    return _offset_alternative(data, st, verdicts, top)
+    verdicts, kept = _kept_if_better(data, st, verdicts, {top: g})
+    return _offset_alternative(data, st, verdicts, top) if kept else verdicts
 
 
 def _offset_alternative(data, st, verdicts, top: str) -> list[Verdict]:
@@ -452,10 +454,7 @@ def _offset_alternative(data, st, verdicts, top: str) -> list[Verdict]:
     mean = float(np.mean(_training_torque(data.train, top, st.fits[top].params)))
     lo, hi = effect_class(OFFSET).bounds["accel_rad_s2"]
     o = _refit_globally(data, st.fits[OFFSET], {"accel_rad_s2": float(np.clip(mean, lo, hi))})
-    if not o.sse < st.fits[OFFSET].sse:
-        return verdicts
-    st.update(data, {OFFSET: o})
-    return st.judged_again(verdicts, {OFFSET: o})
+    return _kept_if_better(data, st, verdicts, {OFFSET: o})[0]
 
 
 def _payload_stage(data, st, verdicts) -> list[Verdict]:
@@ -489,11 +488,7 @@ def _payload_stage(data, st, verdicts) -> list[Verdict]:
         mode.update(freq_hz=peak, damping_ratio=PEAK_DAMPING)
     holds = [{**mode, "coupling": 1.0, "payload_fraction": f} for f in PAYLOAD_FRACTIONS]
     g = min((_refit_globally(data, fit, h) for h in holds), key=lambda f: f.sse)
-    g = _global_cycles(data, g)
-    if not g.sse < fit.sse:
-        return verdicts
-    st.update(data, {PAYLOAD: g})
-    return st.judged_again(verdicts, {PAYLOAD: g})
+    return _kept_if_better(data, st, verdicts, {PAYLOAD: _global_cycles(data, g)})[0]
 
 
 def _payload_peak(data) -> float | None:
@@ -590,11 +585,7 @@ def _alike_stage(data, st, verdicts) -> list[Verdict]:
         max_iter=REOPEN_ITER,
         rate_starts={n: leader.rate_vector for n in others},
     )
-    better = {n: f for n, f in again.items() if f.sse < st.fits[n].sse}
-    if not better:
-        return verdicts
-    st.update(data, better)
-    return st.judged_again(verdicts, better)
+    return _kept_if_better(data, st, verdicts, again)[0]
 
 
 def _training_torque(train: RunStack, name: str, params) -> np.ndarray:
