@@ -204,10 +204,7 @@ def _judged_again(diag, data, checked, params, options, before_held) -> Diagnosi
     its side (`_payload_side`); each kept if it adopts an effect."""
     again = _tentative_read_out(diag, data)
     if again is not None:
-        side_source, seed, integration, _, base_search, max_iter, cv_iter = options
-        data2 = _prepared(
-            checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
-        )[0]
+        data2 = _prepared_at(checked, options, again.timing)
         diag = _at_read_out(diag, data, data2, again, params, before_held)
     side = _payload_side(diag, data, checked[1])
     if side is None:
@@ -355,10 +352,7 @@ def _read_out_with(model: CandidateFit, data, checked, options):
     again = identify_held(data, model.effects(), timing=None, generations=0)
     if again.timing == data.timing:
         return again, None
-    side_source, seed, integration, _, base_search, max_iter, cv_iter = options
-    there = _prepared(
-        checked, side_source, seed, integration, again.timing, base_search, max_iter, cv_iter
-    )[0]
+    there = _prepared_at(checked, options, again.timing)
     refit = fit_candidates(
         there.train,
         again.vector,
@@ -545,6 +539,15 @@ def _rival_starts(diag: Diagnosis, data: DiagnosisData, again: IdentificationRes
         res = identify_held(data, first.fits[n].effects(), timing=again.timing, generations=0)
         starts[n] = (res.vector, res.effects[-1])
     return starts
+
+
+def _prepared_at(checked, options, timing: Timing) -> DiagnosisData:
+    """The data prepared (`_prepared`) with `diagnose`'s `options` at the
+    read-out `timing` instead of the options' own."""
+    side_source, seed, integration, _, base_search, max_iter, cv_iter = options
+    return _prepared(
+        checked, side_source, seed, integration, timing, base_search, max_iter, cv_iter
+    )[0]
 
 
 def _prepared(
