@@ -15,18 +15,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from truth_error import measured_runs, truth_rate_vector
+from truth_error import measured_runs, truth_parameter_set
 
 from isp_twin.diagnosis import search
 from isp_twin.diagnosis.candidates import fit_candidates, holdout_residual
 from isp_twin.diagnosis.prepared_runs import checked_inputs
 from isp_twin.diagnosis.rounds import identify_held
-from isp_twin.estimation.parameter_file import fitted_axis
-from isp_twin.identification.read_out import Timing, fitted_with
-from isp_twin.model.parameters import EffectSpec, load_parameters
+from isp_twin.identification.read_out import Timing
+from isp_twin.model.parameters import EffectSpec
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 from isp_twin.reference import design_experiment
-from isp_twin.resources import default_parameters_path
 
 SEED = 337
 AXIS = "inner_az"
@@ -42,12 +40,8 @@ def case():
     fitted there, the gyro's sigma [rad/s], the parameter set)."""
     exp = design_experiment(SEED, "saturation", held_out="covered")
     truth = exp.truth()
-    x = truth_rate_vector(truth)
-    params = load_parameters(default_parameters_path())
-    record = fitted_with(DEFAULT_INTEGRATION, BASE_TIMING)
-    ax = fitted_axis(params.axis(AXIS), x, np.full_like(x, np.nan), (), record, "truth")
+    params = truth_parameter_set(truth, AXIS, BASE_TIMING)
     runs = measured_runs(exp)
-    params = params.with_axis(AXIS, ax)
     checked = checked_inputs(
         [runs["train1"], runs["train2"]],
         [runs["heldout"]],

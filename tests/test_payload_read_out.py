@@ -24,20 +24,18 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
 import pytest
+from truth_error import truth_parameter_set, truth_rate_vector
 
 from isp_twin.diagnosis.candidates import fit_candidate
 from isp_twin.diagnosis.prepared_runs import checked_inputs
 from isp_twin.diagnosis.search import _payload_read_out, _prepared
-from isp_twin.estimation.parameter_file import fitted_axis
 from isp_twin.identification.fit import Settings, identify
 from isp_twin.identification.measured import MeasuredData
-from isp_twin.identification.read_out import Timing, fitted_with
-from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, load_parameters
+from isp_twin.identification.read_out import Timing
+from isp_twin.model.parameters import EffectSpec
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 from isp_twin.reference import design_experiment
-from isp_twin.resources import default_parameters_path
 
 SEED = 100
 AXIS = "inner_az"
@@ -54,14 +52,11 @@ def case():
         name: MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])
         for name, r in exp.runs.items()
     }
-    regimes = truth["rate_form"]["regimes"]
-    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
+    x = truth_rate_vector(truth)
     mode = dict(truth["effects"][0]["params"])
-    params = load_parameters(default_parameters_path())
-    record = fitted_with(DEFAULT_INTEGRATION, Timing(0.0, True))
-    ax = fitted_axis(params.axis(AXIS), x, np.full_like(x, np.nan), (), record, "truth, rigid")
+    params = truth_parameter_set(truth, AXIS, Timing(0.0, True), "truth, rigid")
     sigma = truth["sensors"]["gyro_noise_rad_s"]
-    return runs, x, mode, sigma, params.with_axis(AXIS, ax)
+    return runs, x, mode, sigma, params
 
 
 def _identify(case, prior_rates: bool):

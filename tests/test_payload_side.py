@@ -23,8 +23,8 @@ from __future__ import annotations
 from dataclasses import replace
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
+from truth_error import truth_parameter_set, truth_rate_vector
 
 from isp_twin.diagnosis.candidates import fit_candidate
 from isp_twin.diagnosis.prepared_runs import checked_inputs, given_held
@@ -35,13 +35,10 @@ from isp_twin.diagnosis.search import (
     _prepared,
     _side_stack,
 )
-from isp_twin.estimation.parameter_file import fitted_axis
 from isp_twin.identification.measured import MeasuredData
-from isp_twin.identification.read_out import Timing, fitted_with
-from isp_twin.model.parameters import RATE_LAYOUT, load_parameters
+from isp_twin.identification.read_out import Timing
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 from isp_twin.reference import design_experiment
-from isp_twin.resources import default_parameters_path
 
 SEED = 93
 AXIS = "inner_az"
@@ -57,13 +54,9 @@ def case():
         name: MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])
         for name, r in exp.runs.items()
     }
-    regimes = truth["rate_form"]["regimes"]
-    x = np.concatenate([[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]])
+    x = truth_rate_vector(truth)
     timing = Timing(0.0, truth["sensors"]["gyro_averaged"])
-    params = load_parameters(default_parameters_path())
-    record = fitted_with(DEFAULT_INTEGRATION, timing)
-    ax = fitted_axis(params.axis(AXIS), x, np.full_like(x, np.nan), (), record, "truth, rigid")
-    params = params.with_axis(AXIS, ax)
+    params = truth_parameter_set(truth, AXIS, timing, "truth, rigid")
     checked = checked_inputs(
         [runs["train1"], runs["train2"]], [runs["heldout"]], params, AXIS, ["resonance"], "measured"
     )

@@ -18,18 +18,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from truth_error import measured_runs, truth_rate_vector
+from truth_error import measured_runs, truth_parameter_set
 
 from isp_twin.diagnosis import rounds
 from isp_twin.diagnosis.prepared_runs import checked_inputs
 from isp_twin.diagnosis.rounds import identify_held, round_at_read_out
 from isp_twin.diagnosis.search import _prepared
-from isp_twin.estimation.parameter_file import fitted_axis
-from isp_twin.identification.read_out import Timing, fitted_with
-from isp_twin.model.parameters import EffectSpec, load_parameters
+from isp_twin.identification.read_out import Timing
+from isp_twin.model.parameters import EffectSpec
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 from isp_twin.reference import design_experiment
-from isp_twin.resources import default_parameters_path
 
 SEED = 337
 AXIS = "inner_az"
@@ -43,15 +41,10 @@ def case():
     sigma [rad/s]); the parameter file holds the truth's rate form."""
     exp = design_experiment(SEED, "lugre", held_out="covered")
     truth = exp.truth()
-    x = truth_rate_vector(truth)
-    params = load_parameters(default_parameters_path())
-    record = fitted_with(DEFAULT_INTEGRATION, TIMING)
-    ax = fitted_axis(params.axis(AXIS), x, np.full_like(x, np.nan), (), record, "truth")
+    params = truth_parameter_set(truth, AXIS, TIMING)
     runs = measured_runs(exp)
     train = [runs["train1"], runs["train2"]]
-    checked = checked_inputs(
-        train, [runs["heldout"]], params.with_axis(AXIS, ax), AXIS, ["lugre"], "measured"
-    )
+    checked = checked_inputs(train, [runs["heldout"]], params, AXIS, ["lugre"], "measured")
     data = _prepared(checked, "measured", 0, DEFAULT_INTEGRATION, TIMING, False, 8, 2)[0]
     bristles = dict(truth["effects"][0]["params"])
     return data, bristles, truth["sensors"]["gyro_noise_rad_s"]

@@ -4,13 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from isp_twin.estimation.parameter_file import fitted_axis
 from isp_twin.identification.cost import rmse
 from isp_twin.identification.measured import MeasuredData
-from isp_twin.identification.read_out import Timing
-from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
-from isp_twin.model.substep_model import Integration
+from isp_twin.identification.read_out import Timing, fitted_with
+from isp_twin.model.parameters import (
+    RATE_LAYOUT,
+    EffectSpec,
+    ParameterSet,
+    RateParams,
+    load_parameters,
+)
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.reference import REGIME_NAMES, Axis, design_experiment
 from isp_twin.reference.truth import rate_form
+from isp_twin.resources import default_parameters_path
 from isp_twin.units import DEG
 
 
@@ -30,6 +38,19 @@ def truth_rate_vector(truth: dict) -> np.ndarray:
     return np.concatenate(
         [[regimes[r][f] for f in RATE_LAYOUT.fields] for r in truth["regime_order"]]
     )
+
+
+def truth_parameter_set(
+    truth: dict, axis: str, timing: Timing, note: str = "truth"
+) -> ParameterSet:
+    """The default parameter set with `axis` holding a reference truth's
+    rate form and no effect, recorded as fitted at the read-out `timing`
+    with the default integration (a parameter file as `identify` writes it)."""
+    x = truth_rate_vector(truth)
+    params = load_parameters(default_parameters_path())
+    record = fitted_with(DEFAULT_INTEGRATION, timing)
+    ax = fitted_axis(params.axis(axis), x, np.full_like(x, np.nan), (), record, note)
+    return params.with_axis(axis, ax)
 
 
 def measured_runs(exp) -> dict[str, MeasuredData]:
