@@ -65,7 +65,7 @@ def _errors(stack, fit, sigma: float) -> tuple[float, float]:
     return float(np.sqrt(fit.sse / fit.n_samples)) / sigma, float(np.sqrt(np.mean(held**2))) / sigma
 
 
-def test_at_the_base_read_out_the_adopted_effect_is_not_at_the_noise(case):
+def test_at_the_base_read_out_the_fitted_effect_is_not_at_the_noise(case):
     _, data, model, sigma, _ = case
     train, held = _errors(data, model, sigma)
     assert train > 1.05 and held > 3.0

@@ -20,7 +20,9 @@ held, on the side (fused or raw angle) where it fits better
 (`_payload_side`). Where none of that adopts an effect at the noise, the
 first pass's effects are adopted, not converged, if the model with them fits
 the training runs at the noise and removes most of the held-out excess
-(`_explains_training`).
+(`_explains_training`); an effect so adopted is judged again at the
+read-out `identify` chooses with it held, where that fits the training runs
+better (`_explained_read_out`).
 
 Options of `diagnose`:
     max_iter: Levenberg-Marquardt iterations per fit (8: LuGre's bristle
@@ -344,7 +346,9 @@ def _explained_read_out(diag, data, checked, params, options, before_held) -> Di
     return _adopted_there(diag, data, better, again, params, before_held)
 
 
-def _read_out_with(model: CandidateFit, data, checked, options):
+def _read_out_with(
+    model: CandidateFit, data: DiagnosisData, checked, options
+) -> tuple[IdentificationResult, DiagnosisData | None]:
     """(`identify` with `model`'s effects held and the read-out chosen again,
     the data prepared at that read-out) where the read-out differs from the
     data's and `model`'s effect refitted there from those rates fits the
