@@ -134,7 +134,9 @@ READ_OUT_RIVALS = 3
 #: there lowers the training cost by this fraction (`_other_gyro_read_out`):
 #: a gate, not a verdict (the round there judges held out, and is kept only
 #: if it adopts an effect at the noise). 10 % until stop 27; benchmark cable
-#: spring seed 22 gains 2.9 % there and reaches the noise.
+#: spring seed 22 gains 2.9 % there and reaches the noise. The same gate
+#: for an effect adopted above the noise at the read-out `identify` chooses
+#: with it held (`_read_out_with`, from stop 52).
 FLIP_GAIN = 0.01
 #: Share of the held-out mean-square excess over the noise that effects must
 #: remove, the training runs at the noise with them, to be adopted though the
