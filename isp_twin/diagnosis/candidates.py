@@ -64,6 +64,10 @@ class CandidateFit:
         fixed: effects already in the model (not refitted).
         held: effect parameters held at their start (the class's `frozen`,
             and its `substep_only` ones at m = 1).
+        placed: effect parameters placed by the held-out runs along the
+            effect's trade with the friction levels
+            (`isp_twin.diagnosis.trade`): not fitted to the training runs,
+            so not among the `n_params` the BIC charges.
     """
 
     name: str
@@ -78,6 +82,7 @@ class CandidateFit:
     status: FitStatus
     fixed: tuple[EffectSpec, ...] = ()
     held: tuple[str, ...] = ()
+    placed: tuple[str, ...] = ()
 
     @property
     def rmse(self) -> float:

@@ -22,6 +22,7 @@ from isp_twin.diagnosis.prepared_runs import DIAGNOSE_FIT, DiagnosisData
 from isp_twin.diagnosis.residual import ResidualContext, noise_floor, residual_context
 from isp_twin.diagnosis.result import RoundResult, rms_of
 from isp_twin.diagnosis.selection import MIN_GAIN, Verdict, judge, select
+from isp_twin.diagnosis.trade import placed_along_trade
 from isp_twin.errors import ParameterError
 from isp_twin.estimation.information import parameter_penalty
 from isp_twin.estimation.simulation_error import RunStack, predict_one, residuals, residuals_many
@@ -229,7 +230,9 @@ class _RoundState:
         return sorted(redone, key=lambda v: v.holdout_rmse)
 
     def update(self, data: DiagnosisData, refits: dict[str, CandidateFit]) -> None:
-        """`refits` written into `fits`, their held-out residuals into `held_of`."""
+        """`refits` written into `fits` (`_placed`), their held-out residuals
+        into `held_of`."""
+        refits = {n: _placed(data, f, self.base) for n, f in refits.items()}
         names = list(refits)
         for n, h in zip(names, data.held_residuals([refits[n] for n in names])):
             self.fits[n] = refits[n]
@@ -256,6 +259,15 @@ def diagnosis_round(
     return _acceptance(data, st, verdicts, base_search)
 
 
+def _placed(data: DiagnosisData, fit: CandidateFit, base: CandidateFit) -> CandidateFit:
+    """`fit` placed along its effect's trade with the friction levels by the
+    held-out runs (`trade.placed_along_trade`, below the base's training
+    sse); as it is under cross-validation (no held-out run to place it)."""
+    if data.held is None:
+        return fit
+    return placed_along_trade(data.train, data.held, fit, base.sse)
+
+
 def _as_round_base(model: CandidateFit) -> CandidateFit:
     """The previous round's model as this round's base: its effects fixed.
 
@@ -278,6 +290,8 @@ def _judged(data, base, fits, remaining) -> tuple[_RoundState, list[Verdict]]:
         if fits[n].sse > base.sse:
             fits[n] = _as_base(fits[n], base)
             failed.add(n)
+        else:
+            fits[n] = _placed(data, fits[n], base)
     held_all = data.held_residuals([base] + [fits[n] for n in remaining])
     base_held = held_all[0]
     st = _RoundState(

@@ -141,6 +141,15 @@ class Effect:
         `drive_taken_digits` (`isp_twin.diagnosis.candidates`)."""
         return []
 
+    #: The parameter that trades against the friction levels on the training
+    #: runs (None: none does): raised, with every regime's static and Coulomb
+    #: levels lowered by what it adds (`sliding_friction_rad_s2`,
+    #: `drive_taken_digits`), it changes nothing the runs can see where drive
+    #: and motion keep one sign. Where a held-out run is given the diagnosis
+    #: places it along that trade by the held-out run
+    #: (`isp_twin.diagnosis.trade`).
+    trade_parameter: ClassVar[str | None] = None
+
     @classmethod
     def sliding_friction_rad_s2(cls, params: Mapping[str, float]) -> float:
         """The friction the effect adds in steady sliding, against the motion

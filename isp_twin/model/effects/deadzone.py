@@ -37,6 +37,11 @@ class Deadzone(Effect):
         top = float(np.max(np.abs(ctx.u))) or 1.0
         return [{"width_digits": f * top} for f in np.geomspace(cls.SMALLEST, 0.4, 40)]
 
+    #: Beyond the band the drive loses the motor gain times the width, as
+    #: while sliding it loses the Coulomb level: on cosine runs a wider band
+    #: under lower levels fits alike (`Effect.trade_parameter`).
+    trade_parameter = "width_digits"
+
     #: Refined starts (`refined_starts`): these fractions of the widest dead
     #: zone the base's friction levels can carry.
     REFINED_SHARES = (0.2, 0.4, 0.6, 0.8)
