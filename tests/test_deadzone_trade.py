@@ -14,14 +14,19 @@ back within 1 % from both sides.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from truth_error import measured_runs, truth_rate_vector
 
+from isp_twin.commands.diagnose import _interval
 from isp_twin.diagnosis.candidates import CandidateFit
 from isp_twin.diagnosis.prepared_runs import fused_runs
+from isp_twin.diagnosis.result import Diagnosis, RoundResult
 from isp_twin.diagnosis.trade import TRADE_UNSEEN, placed_along_trade
 from isp_twin.estimation.simulation_error import residuals_many, stack_runs
+from isp_twin.estimation.verdict import json_safe
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import RATE_LAYOUT
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION
@@ -121,3 +126,36 @@ def test_no_move_above_the_ceiling_and_none_for_an_effect_without_a_trade():
         status=None,
     )
     assert placed_along_trade(train, held, cogging, np.inf) is cogging
+
+
+def test_the_answer_says_the_held_out_run_placed_the_width():
+    fit = SimpleNamespace(
+        name="deadzone",
+        params={"width_digits": 114.0},
+        ci95={"width_digits": float("nan")},
+        placed=("width_digits",),
+    )
+    rnd = RoundResult(
+        baseline=SimpleNamespace(name="none"),
+        fits={"deadzone": fit},
+        verdicts=(),
+        selected="deadzone",
+        holdout_before=(np.ones(10),),
+        holdout_after=(np.ones(10),),
+        noise_floor=1.0,
+    )
+    diag = Diagnosis(
+        axis="inner_az",
+        rounds=(rnd,),
+        rmse_before=1.0,
+        rmse_after=1.0,
+        noise_floor=1.0,
+        params_out=None,
+        analysis_before=None,
+        analysis_after=None,
+    )
+    got = json_safe(diag._effects_json())
+    assert got["effect_placed_by_held_out"] == ["width_digits"]
+    assert got["all_selected"][0]["placed_by_held_out"] == ["width_digits"]
+    assert got["effect_ci95"] == {"width_digits": None}
+    assert "placed by the held-out run" in _interval(fit, "width_digits")

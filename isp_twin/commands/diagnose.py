@@ -291,7 +291,7 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
     for fit in diag.accepted:
         say(f"{fit.name}:")
         for k, v in fit.params.items():
-            say(f"  {k} = {v:.6g} ± {fit.ci95[k]:.3g}")
+            say(f"  {k} = {v:.6g} {_interval(fit, k)}")
     say(
         f"held-out RMS error: before {diag.rmse_before / DEG:.4g} deg/s, after {diag.rmse_after / DEG:.4g} deg/s, "
         f"noise floor {diag.noise_floor / DEG:.4g} deg/s"
@@ -353,3 +353,10 @@ def _json_default(x):
         return float(x)
     except (TypeError, ValueError):
         return str(x)
+
+
+def _interval(fit, name: str) -> str:
+    """A parameter's ± 95 % half-width, or that the held-out run placed it."""
+    if name in fit.placed:
+        return "(placed by the held-out run: the training runs do not tell it)"
+    return f"± {fit.ci95[name]:.3g}"

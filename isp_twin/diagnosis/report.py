@@ -110,7 +110,12 @@ def write_report(diag: Diagnosis, path: Path, params_out: Path | None = None) ->
         if r.selected != BASELINE:
             m = r.model
             lines += ["| parameter | value | 95 % CI half-width |", "|---|---|---|"]
-            lines += [f"| {k} | {_fmt(v)} | {_fmt(m.ci95[k])} |" for k, v in m.params.items()]
+            lines += [
+                f"| {k} | {_fmt(v)} | "
+                + ("placed by the held-out run" if k in m.placed else _fmt(m.ci95[k]))
+                + " |"
+                for k, v in m.params.items()
+            ]
             lines.append("")
         lines += [
             "| rank | candidate | held-out RMS [rad/s] | z | delta BIC | significant | reason |",

@@ -240,8 +240,15 @@ class Diagnosis:
             "selected_effect": self.selected_effect,
             "effect_parameters": dict(acc[0].params) if acc else {},
             "effect_ci95": dict(acc[0].ci95) if acc else {},
+            "effect_placed_by_held_out": list(acc[0].placed) if acc else [],
             "all_selected": [
-                {"name": f.name, "parameters": dict(f.params), "ci95": dict(f.ci95)} for f in acc
+                {
+                    "name": f.name,
+                    "parameters": dict(f.params),
+                    "ci95": dict(f.ci95),
+                    "placed_by_held_out": list(f.placed),
+                }
+                for f in acc
             ],
             "rmse_before": self.rmse_before,
             "rmse_baseline_refit": float(rms_of(self.rounds[0].holdout_before)),

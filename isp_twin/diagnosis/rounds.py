@@ -1048,7 +1048,12 @@ def _determined(fit: CandidateFit) -> tuple[bool, str]:
     # Thresholds (a dead-zone width, a saturation limit, a delay) change the
     # cost in steps: a finite-difference interval says nothing about them,
     # and their held-out gain is the evidence.
-    free = [p for p in cls.param_names if p not in frozen and p not in THRESHOLD_PARAMS]
+    # A parameter the held-out run placed (`trade`) has no training interval.
+    free = [
+        p
+        for p in cls.param_names
+        if p not in frozen and p not in THRESHOLD_PARAMS and p not in fit.placed
+    ]
     undefined = [p for p in free if not np.isfinite(fit.ci95.get(p, np.nan))]
     if undefined:
         return False, f"parameters not determined ({', '.join(undefined)}: no finite interval)"

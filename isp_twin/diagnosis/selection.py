@@ -21,7 +21,9 @@ A candidate effect is *significant* when all four hold:
    noise (real data), a real but negligible effect is not worth a term.
 4. Information criterion: its training BIC is lower than the model's without
    it (`isp_twin.estimation.information.bic`: M ln(SSE/M) + k ln M; the
-   effect's extra parameters must pay for themselves).
+   effect's extra parameters must pay for themselves). A parameter the
+   held-out run placed (`CandidateFit.placed`, `isp_twin.diagnosis.trade`)
+   is not among the k: the training runs do not see it.
 
 Among significant candidates the one with the lowest held-out RMSE is
 selected; near-ties (within `MIN_GAIN` of the noise variance) go to the

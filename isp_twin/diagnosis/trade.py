@@ -59,7 +59,8 @@ def placed_along_trade(
     below both the fit's times (1 + `TRADE_UNSEEN`) and `ceiling` (the
     base's: a candidate never fits worse than the model without it); `fit`
     itself where its effect has no `trade_parameter` or no such point is
-    better held out. The intervals are the fit's. The placed parameter is
+    better held out. The intervals are the fit's, the placed parameter's
+    NaN (the training runs do not bound it). The placed parameter is
     recorded (`CandidateFit.placed`) and no longer charged by the training
     BIC: the training runs do not see it, and the held-out rules
     (`isp_twin.diagnosis.selection`) are its evidence."""
@@ -88,6 +89,8 @@ def placed_along_trade(
     return replace(
         fit,
         params={**fit.params, name: float(best)},
+        # The training Jacobian's interval does not apply to it.
+        ci95={**fit.ci95, name: float("nan")},
         rate_vector=rows[0],
         sse=sse,
         n_params=k,
