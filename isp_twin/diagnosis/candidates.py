@@ -33,6 +33,7 @@ __all__ = [
     "fit_candidates",
     "holdout_residual",
     "holdout_residuals",
+    "levels_taken",
     "rate_bounds",
 ]
 
@@ -285,17 +286,25 @@ def _friction_lowered(x_rate, cls, guesses, dt: float, deficit: float = 0.0) -> 
     parameter file made without it) shows it as the deficit, and is not
     lowered by that part."""
     xs = np.tile(np.asarray(x_rate, float), (len(guesses), 1))
-    brought = np.array([cls.sliding_friction_rad_s2(g) for g in guesses])
-    taken = np.array([cls.drive_taken_digits(g) for g in guesses])
     gain = RATE_LAYOUT.column(np.asarray(x_rate, float), "gain")
-    # (G, regimes): per sample, as the levels are.
-    shift = np.maximum(brought - max(deficit, 0.0), 0.0)[:, None] * dt + taken[:, None] * gain
+    shift = levels_taken(cls, guesses, gain, dt, deficit)
     if not shift.any():
         return xs
     for field in ("static", "coulomb"):
         idx = list(RATE_LAYOUT.field_indices(field))
         xs[:, idx] = np.maximum(xs[:, idx] - shift, FRICTION_KEPT * xs[:, idx])
     return xs
+
+
+def levels_taken(cls, guesses, gain: np.ndarray, dt: float, deficit: float = 0.0) -> np.ndarray:
+    """(G, regimes): what each guess of effect class `cls` takes off the
+    static and Coulomb levels in steady sliding, per sample (the rate
+    form's units): its `Effect.sliding_friction_rad_s2` beyond `deficit`
+    [rad/s^2] times the sample period dt [s], and its
+    `Effect.drive_taken_digits` times the regime's motor `gain`."""
+    brought = np.array([cls.sliding_friction_rad_s2(g) for g in guesses])
+    taken = np.array([cls.drive_taken_digits(g) for g in guesses])
+    return np.maximum(brought - max(deficit, 0.0), 0.0)[:, None] * dt + taken[:, None] * gain
 
 
 def _held(cls, m: int) -> list[str]:

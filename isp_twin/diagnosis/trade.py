@@ -30,7 +30,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from isp_twin.diagnosis.candidates import BASELINE, CandidateFit
+from isp_twin.diagnosis.candidates import BASELINE, CandidateFit, levels_taken
 from isp_twin.estimation.information import bic
 from isp_twin.estimation.simulation_error import RunStack, residuals_many
 from isp_twin.model.effects import effect_class
@@ -78,20 +78,19 @@ def placed_along_trade(
     best = _best_on_trade(train, held, fit, cls, name, coarse, ceiling)
     if best is None:
         return fit
-    k = int(np.argmin(np.abs(coarse - best)))
-    fine = np.linspace(coarse[max(k - 1, 0)], coarse[min(k + 1, TRADE_COARSE - 1)], TRADE_FINE)
+    i = int(np.argmin(np.abs(coarse - best[0])))
+    fine = np.linspace(coarse[max(i - 1, 0)], coarse[min(i + 1, TRADE_COARSE - 1)], TRADE_FINE)
     best = _best_on_trade(train, held, fit, cls, name, fine, ceiling)
     if best is None:
         return fit
-    rows = _rows(cls, fit, name, np.array([best]), train.dt)
-    sse = float(_sse(train, fit, name, rows, np.array([best]))[0])
+    value, row, sse = best
     k = fit.n_params - (name not in fit.placed)
     return replace(
         fit,
-        params={**fit.params, name: float(best)},
+        params={**fit.params, name: value},
         # The training Jacobian's interval does not apply to it.
         ci95={**fit.ci95, name: float("nan")},
-        rate_vector=rows[0],
+        rate_vector=row,
         sse=sse,
         n_params=k,
         bic=bic(sse, fit.n_samples, k),
@@ -99,33 +98,41 @@ def placed_along_trade(
     )
 
 
-def _best_on_trade(train, held, fit, cls, name, values, ceiling) -> float | None:
-    """The value among `values` (and the fit's own) the held-out runs fit
-    best with the training sse within bounds (`placed_along_trade`); None
-    where that is the fit's own."""
-    v0 = float(fit.params[name])
-    values = np.append(values, v0)
+def _best_on_trade(
+    train, held, fit, cls, name, values, ceiling
+) -> tuple[float, np.ndarray, float] | None:
+    """(value, rate vector, training sse) of the point among `values` the
+    held-out runs fit best with the training sse within bounds
+    (`placed_along_trade`); None where the fit's own point, competing on
+    the held-out runs, is that one. The held-out runs are simulated only at
+    the points within bounds."""
     rows = _rows(cls, fit, name, values, train.dt)
     ok = np.all(_levels(rows) > 0.0, axis=1)
+    if not ok.any():
+        return None
     values, rows = values[ok], rows[ok]
     trained = _sse(train, fit, name, rows, values)
-    limit = min(trained[-1] * (1.0 + TRADE_UNSEEN), ceiling)
-    seen = trained <= limit
-    seen[-1] = True
-    held_sse = np.where(seen, _sse(held, fit, name, rows, values), np.inf)
+    seen = trained <= min(fit.sse * (1.0 + TRADE_UNSEEN), ceiling)
+    # The fit's own point last, in the same batch.
+    held_sse = _sse(
+        held,
+        fit,
+        name,
+        np.vstack([rows[seen], np.asarray(fit.rate_vector, float)]),
+        np.append(values[seen], float(fit.params[name])),
+    )
     k = int(np.argmin(held_sse))
-    return None if k == len(values) - 1 else float(values[k])
+    if k == len(held_sse) - 1:
+        return None
+    return float(values[seen][k]), rows[seen][k], float(trained[seen][k])
 
 
 def _levels_moved(cls, fit, name, values, dt: float) -> np.ndarray:
     """(G, regimes): what the effect at each of `values` takes off the
-    static and Coulomb levels in steady sliding, per sample (the rate form's
-    units): its `sliding_friction_rad_s2` times the sample period dt [s], and its
-    `drive_taken_digits` times the regime's motor gain."""
+    static and Coulomb levels per sample (`candidates.levels_taken`), its
+    other parameters at the fit's."""
     gain = RATE_LAYOUT.column(fit.rate_vector, "gain")
-    taken = np.array([cls.drive_taken_digits({**fit.params, name: v}) for v in values])
-    brought = np.array([cls.sliding_friction_rad_s2({**fit.params, name: v}) for v in values])
-    return taken[:, None] * gain + brought[:, None] * dt
+    return levels_taken(cls, [{**fit.params, name: v} for v in values], gain, dt)
 
 
 def _rows(cls, fit, name, values, dt: float) -> np.ndarray:
