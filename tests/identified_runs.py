@@ -38,8 +38,9 @@ def identified_then_diagnosed(
     )
 
 
-def identified_reference(folder: Path, seed: int) -> tuple[dict, dict]:
-    """`isp-twin generate --reference --seed seed` (clean) into `folder`, then
+def identified_reference(folder: Path, seed: int, held_out: str | None = None) -> tuple[dict, dict]:
+    """`isp-twin generate --reference --seed seed` (clean; `held_out`: its
+    --held-out design, default the command's) into `folder`, then
     `isp-twin identify` with defaults on train1 and train2, the held-out run
     given to --validate: (its --json content, the truth.yaml content)."""
     argv = [
@@ -52,6 +53,8 @@ def identified_reference(folder: Path, seed: int) -> tuple[dict, dict]:
         "--out",
         str(folder),
     ]
+    if held_out is not None:
+        argv += ["--held-out", held_out]
     assert main(argv + ["--quiet"]) == 0
     js = folder / "id.json"
     argv = ["identify", str(folder / "train1.csv"), str(folder / "train2.csv")]
