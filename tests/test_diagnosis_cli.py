@@ -15,6 +15,7 @@ from isp_twin.model.axis_model import simulate
 from isp_twin.model.effects import make_effect
 from isp_twin.model.parameters import EffectSpec, load_parameters
 from isp_twin.resources import default_parameters_path
+from isp_twin.vocabulary import REGIMES
 
 DT = 1e-3
 NOISE = 0.003
@@ -83,6 +84,26 @@ def test_the_command_writes_the_parameter_file_report_recording_and_json(case):
     assert "cogging" in md and "noise floor" in md
     assert (report / "updated_diagnosis.png").stat().st_size > 10_000
     assert (report / "updated_residuals.rrd").stat().st_size > 1_000
+
+
+def test_the_json_counts_the_final_models_breakaways_and_names_the_untrained(case):
+    """The final model's breakaways per regime on the training runs and its
+    rests on the held-out run (docs/identification.md "Stop 54"); the named
+    regimes are those rested against held out and never broken away from in
+    training."""
+    _, folder, _, _, _ = case
+    result = json.loads((folder / "result.json").read_text())
+    counts = result["breakaways"]
+    assert set(counts) == {"training_breakaways", "held_out_rests"}
+    for role in counts.values():
+        assert set(role) == set(REGIMES) and all(n >= 0 for n in role.values())
+    assert sum(counts["training_breakaways"].values()) > 0  # the runs start and stop
+    named = [b["regime"] for b in result["held_out_breakaways_untrained"]]
+    assert named == [
+        r
+        for r in REGIMES
+        if counts["held_out_rests"][r] > 0 and counts["training_breakaways"][r] == 0
+    ]
 
 
 def test_the_fast_model_with_the_updated_file_reproduces_held_out_data(case):

@@ -21,16 +21,19 @@ from isp_twin.diagnosis.search import DEFAULT_ITERATIONS
 from isp_twin.errors import ParameterError
 from isp_twin.estimation.coverage import (
     beyond_training,
+    breakaway_sentence,
     reach_sentence,
     thin_sentence,
     thin_training,
+    untrained_breakaways,
 )
+from isp_twin.identification.cost import model_breakaways
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
 from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
 from isp_twin.units import DEG
-from isp_twin.vocabulary import GIMBAL_AXES
+from isp_twin.vocabulary import GIMBAL_AXES, REGIMES
 
 __all__ = ["add_parser", "execute"]
 
@@ -163,6 +166,7 @@ def execute(args: argparse.Namespace) -> int:
     _with_coverage(
         result, sides_as_read(train, side), sides_as_read(holdout, side), diag.noise_floor
     )
+    _with_breakaways(result, diag, args.axis, side, train, holdout)
     say = _teller(args.quiet)
     _print_diagnosis(diag, result, args.axis, len(train), say)
     _write_outputs(args, diag, axis_in, result, report_path, recording, say)
@@ -178,6 +182,36 @@ def _with_coverage(result: dict, train, holdout, noise_floor: float) -> None:
     result["held_out_beyond_training"] = [b.to_json() for b in beyond]
     result["held_out_thin_in_training"] = [t.to_json() for t in thin]
     said = (reach_sentence(beyond) + thin_sentence(thin)).strip()
+    if said and not result["converged"]:
+        result["verdict"] += ". " + said
+
+
+def _with_breakaways(result: dict, diag, axis: str, side: str, train, holdout) -> None:
+    """The final model's breakaways from rest per regime on the training runs
+    and its rests on the held-out runs (`model_breakaways`) into `result`,
+    and the regimes held-out rests push against where the training runs
+    never break away (`untrained_breakaways`) into its verdict where the
+    model is not at the noise."""
+    ax = diag.params_out.axis(axis)
+
+    def counts(runs):
+        return model_breakaways(
+            ax.rate_params(),
+            runs,
+            side,
+            effects=tuple(ax.effects),
+            timing=diag.timing,
+            integration=diag.integration,
+        )
+
+    trained, held = counts(train)[0], counts(holdout)[1]
+    untrained = untrained_breakaways(trained, held)
+    result["breakaways"] = {
+        "training_breakaways": dict(zip(REGIMES, map(int, trained))),
+        "held_out_rests": dict(zip(REGIMES, map(int, held))),
+    }
+    result["held_out_breakaways_untrained"] = [b.to_json() for b in untrained]
+    said = breakaway_sentence(untrained).strip()
     if said and not result["converged"]:
         result["verdict"] += ". " + said
 

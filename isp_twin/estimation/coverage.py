@@ -26,6 +26,20 @@ regime L- for 5.7 % of their samples, the held-out run for 36 %; with the
 right effect found to 0.2 %, the fit of L- is 7-28 % off and misses the
 held-out run by 3.6 noise floors, the truth by 1.02.
 
+`untrained_breakaways` names the regimes the fitted model rests against on
+a held-out run (the drive pushes that way while it sticks) where it never
+breaks away on the training runs. A breakaway under a rising drive
+measures a regime's static level (Ts), a rest only bounds it, and at speed
+the training runs see the level only through the Stribeck curve, where it
+trades with alpha. An Eq. 7 cosine that swings through angle 0 turns back
+at its two ends, so from rest it breaks away only towards angle 0 (R- and
+L+). On reference clean seed 348 (docs/identification.md "Stop 54")
+`identify` fits the training runs at the noise with L-'s static level 9 %
+above the truth's; a held-out random step pushes the axis at rest in L-
+with a drive between the two levels: the axis breaks away, the fitted
+model stays, and the fit misses the run by 20 noise floors (the truth by
+1.01).
+
 Speeds are rad/s inside; the sentence prints deg/s (the paper's unit).
 """
 
@@ -44,9 +58,15 @@ __all__ = [
     "BEYOND_RATIO",
     "REACH_QUANTILE",
     "THIN_RATIO",
+    "MIN_REST_SAMPLES",
+    "RegimeBreakaways",
     "RegimeReach",
     "RegimeShare",
     "beyond_training",
+    "breakaway_counts",
+    "breakaway_sentence",
+    "rest_counts",
+    "untrained_breakaways",
     "reach_sentence",
     "thin_training",
     "thin_sentence",
@@ -71,6 +91,11 @@ MIN_SAMPLES = 50
 #: (the misses of axis 305: 5.4-6.7; of the 50 effect axes, 7 above 3) and
 #: stop 43's clean 280-289 (all below 2.2).
 THIN_RATIO = 3.0
+#: A breakaway counts where the model rested for at least this many samples
+#: before it: a run that opens at rest under a drive above the static level
+#: leaves rest at its first step, which bounds the level and does not
+#: measure it. Chosen once, not tuned.
+MIN_REST_SAMPLES = 2
 
 
 @dataclass(frozen=True)
@@ -116,6 +141,24 @@ class RegimeShare:
             "training_share_moving": self.training_share,
             "held_out_share_moving": self.held_out_share,
         }
+
+
+@dataclass(frozen=True)
+class RegimeBreakaways:
+    """One regime the model rests against on the held-out runs where it
+    never breaks away on the training runs.
+
+    Attributes:
+        regime: its name (`REGIMES`).
+        held_out: the model's rests against it on the held-out runs
+            (`rest_counts`).
+    """
+
+    regime: str
+    held_out: int
+
+    def to_json(self) -> dict:
+        return {"regime": self.regime, "training_breakaways": 0, "held_out_rests": self.held_out}
 
 
 def _pooled(runs) -> tuple[np.ndarray, np.ndarray]:
@@ -216,4 +259,74 @@ def reach_sentence(beyond: Sequence[RegimeReach]) -> str:
         "training runs do not determine the friction law, and a model that fits them to the "
         "noise can miss the held-out runs. Train with runs that reach those speeds (a slower or "
         "larger cosine), or judge on held-out runs within the training speeds. "
+    )
+
+
+def _rest_episodes(rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first, one-past-last sample) of each stretch of at least
+    `MIN_REST_SAMPLES` samples where `rate` is exactly 0."""
+    rest = (np.asarray(rate, float) == 0.0).astype(np.int8)
+    edges = np.diff(np.concatenate([[0], rest, [0]]))
+    first, stop = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    keep = stop - first >= MIN_REST_SAMPLES
+    return first[keep], stop[keep]
+
+
+def breakaway_counts(rates: Sequence[np.ndarray], regimes: Sequence[np.ndarray]) -> np.ndarray:
+    """Per regime index (`REGIMES` order), how often a model's rate leaves
+    exact rest after at least `MIN_REST_SAMPLES` samples of it.
+
+    Args:
+        rates: per run, the model's own rate [rad/s] (0.0 exactly at rest,
+            as the sub-stepped model holds it).
+        regimes: per run, the regime index of the step into each sample
+            (`AxisResponse.regime`; at rest the drive's direction chooses
+            it): at the first moving sample, the breakaway's side and
+            direction.
+    """
+    counts = np.zeros(len(REGIMES), dtype=int)
+    for w, regime in zip(rates, regimes):
+        _, stop = _rest_episodes(w)
+        stop = stop[stop < np.size(w)]
+        counts += np.bincount(np.asarray(regime)[stop], minlength=len(REGIMES))
+    return counts
+
+
+def rest_counts(rates: Sequence[np.ndarray], regimes: Sequence[np.ndarray]) -> np.ndarray:
+    """Per regime index, how many of a model's rests (at least
+    `MIN_REST_SAMPLES` samples at exact rest; arguments as
+    `breakaway_counts`) the drive pushes towards that regime at some
+    sample: the rests whose end depends on that regime's static level."""
+    counts = np.zeros(len(REGIMES), dtype=int)
+    for w, regime in zip(rates, regimes):
+        regime = np.asarray(regime)
+        for a, b in zip(*_rest_episodes(w)):
+            counts[np.unique(regime[a:b])] += 1
+    return counts
+
+
+def untrained_breakaways(
+    train_breakaways: np.ndarray, held_out_rests: np.ndarray
+) -> tuple[RegimeBreakaways, ...]:
+    """The regimes the held-out runs rest against (`rest_counts`) where the
+    training runs never break away (`breakaway_counts`), in `REGIMES` order."""
+    return tuple(
+        RegimeBreakaways(name, int(held_out_rests[r]))
+        for r, name in enumerate(REGIMES)
+        if held_out_rests[r] > 0 and train_breakaways[r] == 0
+    )
+
+
+def breakaway_sentence(untrained: Sequence[RegimeBreakaways]) -> str:
+    """What the advice says of `untrained` ("" when empty)."""
+    if not untrained:
+        return ""
+    parts = ", ".join(f"{b.regime} ({b.held_out} rests)" for b in untrained)
+    return (
+        f"The held-out runs rest against regime(s) {parts}, where the model never breaks away "
+        "on the training runs: whether and when they break away there depends on its static "
+        "level, which the training runs do not measure (it trades with alpha along the "
+        "Stribeck curve at speed). Train with a run that breaks away there, from rest on that "
+        "side in that direction (a cosine whose turning points stay on that side, or a slow "
+        "ramp from rest). "
     )

@@ -12,12 +12,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from isp_twin.estimation.coverage import RegimeReach, RegimeShare, reach_sentence, thin_sentence
+from isp_twin.estimation.coverage import (
+    RegimeBreakaways,
+    RegimeReach,
+    RegimeShare,
+    breakaway_sentence,
+    reach_sentence,
+    thin_sentence,
+    untrained_breakaways,
+)
 from isp_twin.units import DEG
+from isp_twin.vocabulary import REGIMES
 
 __all__ = [
     "CONVERGED_RATIO",
@@ -151,6 +160,13 @@ class FitVerdict:
             sets allow (`HeldOutSpread`; identify's verdict).
         thin: the regimes the held-out sets move in far more than the
             training sets (`isp_twin.estimation.coverage.thin_training`).
+        untrained: the regimes the model rests against on the held-out
+            sets where it never breaks away on the training sets
+            (`isp_twin.estimation.coverage.untrained_breakaways`).
+        breakaways: per regime name, the model's breakaways from rest on
+            the training sets ("training_breakaways") and its rests against
+            the regime on the held-out sets ("held_out_rests"); empty when
+            not counted.
     """
 
     rmse: Mapping[str, float]
@@ -161,6 +177,8 @@ class FitVerdict:
     beyond: tuple[RegimeReach, ...] = ()
     spread: tuple[HeldOutSpread, ...] = ()
     thin: tuple[RegimeShare, ...] = ()
+    untrained: tuple[RegimeBreakaways, ...] = ()
+    breakaways: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
 
     def ratio(self, name: str) -> float:
         floor = self.noise_floor[name]
@@ -210,6 +228,8 @@ class FitVerdict:
             "held_out_beyond_training": [b.to_json() for b in self.beyond],
             "held_out_thin_in_training": [t.to_json() for t in self.thin],
             "held_out_spread": [json_safe(s.to_json()) for s in self.spread],
+            "held_out_breakaways_untrained": [b.to_json() for b in self.untrained],
+            "breakaways": {k: dict(v) for k, v in self.breakaways.items()},
         }
 
 
@@ -221,18 +241,25 @@ def fit_verdict(
     beyond: Sequence[RegimeReach] = (),
     spread: Sequence[HeldOutSpread] = (),
     thin: Sequence[RegimeShare] = (),
+    breakaways: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> FitVerdict:
     """Judge per-set RMS errors [rad/s] against per-set noise floors [rad/s];
     where not converged, the advice opens with the held-out sets the
     training sets leave open (`HeldOutSpread.open`, of those above the
-    limit), the regimes `beyond` the training speeds (`reach_sentence`) and
-    those the training runs move in `thin`ly (`thin_sentence`)."""
+    limit), the regimes `beyond` the training speeds (`reach_sentence`),
+    those the training runs move in `thin`ly (`thin_sentence`) and those
+    the held-out sets rest against where the training sets never break
+    away (`breakaways`: the model's breakaways per regime on the training
+    sets and its rests on the held-out sets, `breakaway_sentence`)."""
     ratios = {n: rmse[n] / noise_floor[n] if noise_floor[n] > 0 else math.inf for n in rmse}
     converged = bool(ratios) and all(r <= CONVERGED_RATIO for r in ratios.values())
     undetermined = "".join(
         s.sentence() for s in spread if s.open and ratios.get(s.run, 0.0) > CONVERGED_RATIO
     )
-    said = "" if converged else undetermined + reach_sentence(beyond) + thin_sentence(thin) + advice
+    counts = {} if breakaways is None else _named_counts(breakaways, bool(held_out))
+    untrained = () if breakaways is None else untrained_breakaways(*breakaways)
+    said = "" if converged else undetermined + reach_sentence(beyond) + thin_sentence(thin)
+    said = "" if converged else said + breakaway_sentence(untrained) + advice
     return FitVerdict(
         dict(rmse),
         dict(noise_floor),
@@ -242,7 +269,19 @@ def fit_verdict(
         tuple(beyond),
         tuple(spread),
         tuple(thin),
+        untrained,
+        counts,
     )
+
+
+def _named_counts(breakaways: tuple[np.ndarray, np.ndarray], held: bool) -> dict:
+    """`FitVerdict.breakaways` from per-regime counts (training
+    breakaways, held-out rests)."""
+    roles = ("training_breakaways", "held_out_rests") if held else ("training_breakaways",)
+    return {
+        role: {name: int(n) for name, n in zip(REGIMES, counts)}
+        for role, counts in zip(roles, breakaways)
+    }
 
 
 def json_safe(obj):

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from isp_twin.estimation.coverage import breakaway_counts, rest_counts
 from isp_twin.estimation.simulation_error import RunStack, predict_one, stack_runs
 from isp_twin.estimation.simulation_error import residuals as simulation_residuals
 from isp_twin.estimation.verdict import SCALE_DIFFERENCE, noise_floor_of
@@ -22,6 +23,7 @@ from isp_twin.units import DEG
 __all__ = [
     "run_stack",
     "simulate_data",
+    "model_breakaways",
     "residuals",
     "rmse",
     "rate_noise",
@@ -70,6 +72,28 @@ def simulate_data(
     """
     stack = run_stack([d], side_source, rest_rate_deg_s, timing, integration)
     return predict_one(stack, rate.to_vector(), tuple(effects)).mapped(lambda a: a[0])
+
+
+def model_breakaways(
+    rate: RateParams,
+    data: Sequence[MeasuredData],
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per regime (`REGIMES` order), how often the model driven by the runs
+    (`simulate_data`) breaks away from rest (`breakaway_counts`) and how
+    many of its rests push against the regime (`rest_counts`); on the
+    axis's own rate where a sensor effect makes the reading differ."""
+    out = [
+        simulate_data(rate, d, side_source, rest_rate_deg_s, effects, timing, integration)
+        for d in data
+    ]
+    rates = [r.omega if r.omega_true is None else r.omega_true for r in out]
+    regimes = [r.regime for r in out]
+    return breakaway_counts(rates, regimes), rest_counts(rates, regimes)
 
 
 def residuals(

@@ -15,7 +15,7 @@ from pathlib import Path
 from isp_twin.estimation.coverage import beyond_training, thin_training
 from isp_twin.estimation.simulation_error import stack_runs
 from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
-from isp_twin.identification.cost import rmse, simulate_data
+from isp_twin.identification.cost import model_breakaways, rmse, simulate_data
 from isp_twin.identification.fit import IdentificationResult
 from isp_twin.identification.held_out_spread import held_out_spread
 from isp_twin.identification.measured import MeasuredData
@@ -101,13 +101,29 @@ def identification_verdict(
     beyond, thin = beyond_training(*coverage), thin_training(*coverage)
     names = [d.name for d in validation]
     spread = held_out_spread(result, train, validation)
-    verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond, spread, thin)
+    broke = (_breakaways(result, train)[0], _breakaways(result, validation)[1])
+    verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond, spread, thin, broke)
     if verdict.converged or any(e.name == "resonance" for e in result.effects):
         return verdict
     # Only a fit that has not converged gets advice: the runs are stacked
     # for the hint only then (a long log costs a stack of its length).
     hinted = payload_hint(train) + ADVICE
-    return fit_verdict(rmse_all, floors, names, hinted, beyond, spread, thin)
+    return fit_verdict(rmse_all, floors, names, hinted, beyond, spread, thin, broke)
+
+
+def _breakaways(result: IdentificationResult, data: Sequence[MeasuredData]):
+    """The fitted model's breakaways from rest and rests per regime on
+    `data` (`model_breakaways`)."""
+    s = result.settings
+    return model_breakaways(
+        result.rate,
+        data,
+        s.side_source,
+        s.rest_rate_deg_s,
+        result.effects,
+        result.timing,
+        result.integration,
+    )
 
 
 def payload_hint(runs: Sequence[MeasuredData]) -> str:
