@@ -9,10 +9,13 @@ reference clean axis whose miss the advice was written for.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from identified_runs import identified_reference
 
+import isp_twin.commands.diagnose as diagnose_command
 from isp_twin.estimation.coverage import (
     MIN_REST_SAMPLES,
     breakaway_counts,
@@ -21,6 +24,10 @@ from isp_twin.estimation.coverage import (
     untrained_breakaways,
 )
 from isp_twin.estimation.verdict import fit_verdict
+from isp_twin.identification.read_out import Timing
+from isp_twin.model.parameters import load_parameters
+from isp_twin.model.substep_model import DEFAULT_INTEGRATION
+from isp_twin.resources import default_parameters_path
 from isp_twin.vocabulary import REGIMES
 
 R_PLUS, R_MINUS, L_PLUS, L_MINUS = (REGIMES.index(n) for n in ("R+", "R-", "L+", "L-"))
@@ -93,6 +100,32 @@ def test_the_verdict_says_it_only_beside_an_error_above_the_noise():
     on = fit_verdict({"t": 1.0, "h": 1.0}, floors, ["h"], "Try more.", breakaways=counts)
     assert on.advice == ""
     assert on.to_json()["held_out_breakaways_untrained"][0]["regime"] == "R+"
+    # a model that misses the training runs too: the static level is not the story
+    untrained_off = fit_verdict({"t": 2.0, "h": 4.0}, floors, ["h"], "Try more.", breakaways=counts)
+    assert untrained_off.advice == "Try more."
+    assert untrained_off.to_json()["held_out_breakaways_untrained"][0]["regime"] == "R+"
+
+
+@pytest.mark.parametrize("train_floors, said", [(1.0, True), (2.0, False)])
+def test_diagnose_says_it_where_the_final_model_fits_the_training_runs(
+    monkeypatch, train_floors, said
+):
+    counts = (np.array([0, 3, 3, 0]), np.array([0, 1, 1, 2]))
+    monkeypatch.setattr(diagnose_command, "model_breakaways", lambda rate, runs, *a, **k: counts)
+    params = load_parameters(default_parameters_path())
+    diag = SimpleNamespace(
+        params_out=params,
+        timing=Timing(),
+        integration=DEFAULT_INTEGRATION,
+        stack=SimpleNamespace(flat=np.ravel),
+        residual_after=(np.full(100, train_floors * 1e-3),),
+        noise_floor=1e-3,
+    )
+    result = {"converged": False, "verdict": "held-out RMS error 4.00 x the noise floor"}
+    diagnose_command._with_breakaways(result, diag, next(iter(params.axes)), "measured", [], [])
+    assert [b["regime"] for b in result["held_out_breakaways_untrained"]] == ["L-"]
+    assert result["breakaways"]["held_out_rests"]["L-"] == 2
+    assert ("rest against regime(s) L- (2 rests)" in result["verdict"]) is said
 
 
 def test_identify_names_the_regime_whose_breakaway_the_training_runs_do_not_measure(tmp_path):

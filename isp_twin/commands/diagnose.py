@@ -8,6 +8,8 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from isp_twin.commands.data_options import (
     add_data_options,
     check_initial_angle,
@@ -27,6 +29,7 @@ from isp_twin.estimation.coverage import (
     thin_training,
     untrained_breakaways,
 )
+from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.cost import model_breakaways
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.side_angle import sides_as_read
@@ -191,7 +194,8 @@ def _with_breakaways(result: dict, diag, axis: str, side: str, train, holdout) -
     and its rests on the held-out runs (`model_breakaways`) into `result`,
     and the regimes held-out rests push against where the training runs
     never break away (`untrained_breakaways`) into its verdict where the
-    model is not at the noise."""
+    model fits the training runs within the limit and the held-out runs
+    not."""
     ax = diag.params_out.axis(axis)
 
     def counts(runs):
@@ -212,7 +216,9 @@ def _with_breakaways(result: dict, diag, axis: str, side: str, train, holdout) -
     }
     result["held_out_breakaways_untrained"] = [b.to_json() for b in untrained]
     said = breakaway_sentence(untrained).strip()
-    if said and not result["converged"]:
+    residual = diag.stack.flat(np.asarray(diag.residual_after))
+    trained = np.sqrt(np.mean(residual**2)) <= CONVERGED_RATIO * diag.noise_floor
+    if said and trained and not result["converged"]:
         result["verdict"] += ". " + said
 
 
