@@ -316,7 +316,8 @@ NEAR_NOISE = 1.05
 #: probe, which the restart at the noise continues where it is kept. With
 #: the whole budget (200) the stage took up to 2900 more simulated sets on
 #: reference clean seeds 600-659 (602, 603, 607, 613: +10 s) for the same
-#: two moves (626, and 349) that 5 make: +17 % simulated sets (median).
+#: two moves (626, and 349) that 5 make: +13 % simulated sets (median),
+#: at most +151.
 PROBE_EVALUATIONS = 5
 #: Passes of the stepped alphas over the regimes (`_stepped_alpha_restarts`):
 #: the second only after a first that lowered the cost.
