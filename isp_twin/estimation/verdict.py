@@ -259,12 +259,12 @@ def fit_verdict(
     )
     counts = {} if breakaways is None else _named_counts(breakaways, bool(held_out))
     untrained = () if breakaways is None else untrained_breakaways(*breakaways)
-    said = "" if converged else undetermined + reach_sentence(beyond) + thin_sentence(thin)
     # A static level the training runs do not measure explains a miss held
     # out only where the model fits the training runs.
     trained = all(r <= CONVERGED_RATIO for n, r in ratios.items() if n not in held_out)
-    said += breakaway_sentence(untrained) if trained else ""
-    said = "" if converged else said + advice
+    unmeasured = breakaway_sentence(untrained) if trained else ""
+    said = undetermined + reach_sentence(beyond) + thin_sentence(thin) + unmeasured + advice
+    said = "" if converged else said
     return FitVerdict(
         dict(rmse),
         dict(noise_floor),

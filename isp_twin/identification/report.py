@@ -101,7 +101,7 @@ def identification_verdict(
     beyond, thin = beyond_training(*coverage), thin_training(*coverage)
     names = [d.name for d in validation]
     spread = held_out_spread(result, train, validation)
-    broke = (_breakaways(result, train)[0], _breakaways(result, validation)[1])
+    broke = _breakaways(result, train, validation)
     verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond, spread, thin, broke)
     if verdict.converged or any(e.name == "resonance" for e in result.effects):
         return verdict
@@ -111,18 +111,18 @@ def identification_verdict(
     return fit_verdict(rmse_all, floors, names, hinted, beyond, spread, thin, broke)
 
 
-def _breakaways(result: IdentificationResult, data: Sequence[MeasuredData]):
-    """The fitted model's breakaways from rest and rests per regime on
-    `data` (`model_breakaways`)."""
+def _breakaways(
+    result: IdentificationResult,
+    train: Sequence[MeasuredData],
+    validation: Sequence[MeasuredData],
+) -> tuple:
+    """(the fitted model's breakaways from rest per regime on `train`, its
+    rests per regime on `validation`) (`model_breakaways`)."""
     s = result.settings
-    return model_breakaways(
-        result.rate,
-        data,
-        s.side_source,
-        s.rest_rate_deg_s,
-        result.effects,
-        result.timing,
-        result.integration,
+    model = (s.side_source, s.rest_rate_deg_s, result.effects, result.timing, result.integration)
+    return (
+        model_breakaways(result.rate, train, *model)[0],
+        model_breakaways(result.rate, validation, *model)[1],
     )
 
 
