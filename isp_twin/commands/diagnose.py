@@ -24,6 +24,7 @@ from isp_twin.errors import ParameterError
 from isp_twin.estimation.coverage import (
     beyond_training,
     breakaway_sentence,
+    breakaway_table,
     reach_sentence,
     thin_sentence,
     thin_training,
@@ -36,7 +37,7 @@ from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
 from isp_twin.output.files import check_outputs, is_stdout, transaction, write_text_atomic
 from isp_twin.units import DEG
-from isp_twin.vocabulary import GIMBAL_AXES, REGIMES
+from isp_twin.vocabulary import GIMBAL_AXES
 
 __all__ = ["add_parser", "execute"]
 
@@ -197,23 +198,17 @@ def _with_breakaways(result: dict, diag, axis: str, side: str, train, holdout) -
     model fits the training runs within the limit and the held-out runs
     not."""
     ax = diag.params_out.axis(axis)
-
-    def counts(runs):
-        return model_breakaways(
-            ax.rate_params(),
-            runs,
-            side,
-            effects=tuple(ax.effects),
-            timing=diag.timing,
-            integration=diag.integration,
-        )
-
-    trained, held = counts(train)[0], counts(holdout)[1]
-    untrained = untrained_breakaways(trained, held)
-    result["breakaways"] = {
-        "training_breakaways": dict(zip(REGIMES, map(int, trained))),
-        "held_out_rests": dict(zip(REGIMES, map(int, held))),
-    }
+    counts = model_breakaways(
+        ax.rate_params(),
+        train,
+        holdout,
+        side,
+        effects=tuple(ax.effects),
+        timing=diag.timing,
+        integration=diag.integration,
+    )
+    untrained = untrained_breakaways(*counts)
+    result["breakaways"] = breakaway_table(*counts)
     result["held_out_breakaways_untrained"] = [b.to_json() for b in untrained]
     said = breakaway_sentence(untrained).strip()
     residual = diag.stack.flat(np.asarray(diag.residual_after))

@@ -65,6 +65,7 @@ __all__ = [
     "beyond_training",
     "breakaway_counts",
     "breakaway_sentence",
+    "breakaway_table",
     "rest_counts",
     "untrained_breakaways",
     "reach_sentence",
@@ -315,6 +316,17 @@ def untrained_breakaways(
         for r, name in enumerate(REGIMES)
         if held_out_rests[r] > 0 and train_breakaways[r] == 0
     )
+
+
+def breakaway_table(
+    train_breakaways: np.ndarray, held_out_rests: np.ndarray | None = None
+) -> dict[str, dict[str, int]]:
+    """The counts per regime name, as the verdicts' JSON holds them:
+    "training_breakaways" and (with held-out runs) "held_out_rests"."""
+    table = {"training_breakaways": dict(zip(REGIMES, map(int, train_breakaways)))}
+    if held_out_rests is not None:
+        table["held_out_rests"] = dict(zip(REGIMES, map(int, held_out_rests)))
+    return table
 
 
 def breakaway_sentence(untrained: Sequence[RegimeBreakaways]) -> str:

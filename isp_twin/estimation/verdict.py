@@ -21,12 +21,12 @@ from isp_twin.estimation.coverage import (
     RegimeReach,
     RegimeShare,
     breakaway_sentence,
+    breakaway_table,
     reach_sentence,
     thin_sentence,
     untrained_breakaways,
 )
 from isp_twin.units import DEG
-from isp_twin.vocabulary import REGIMES
 
 __all__ = [
     "CONVERGED_RATIO",
@@ -257,7 +257,9 @@ def fit_verdict(
     undetermined = "".join(
         s.sentence() for s in spread if s.open and ratios.get(s.run, 0.0) > CONVERGED_RATIO
     )
-    counts = {} if breakaways is None else _named_counts(breakaways, bool(held_out))
+    counts = {}
+    if breakaways is not None:
+        counts = breakaway_table(breakaways[0], breakaways[1] if held_out else None)
     untrained = () if breakaways is None else untrained_breakaways(*breakaways)
     # A static level the training runs do not measure explains a miss held
     # out only where the model fits the training runs.
@@ -277,16 +279,6 @@ def fit_verdict(
         untrained,
         counts,
     )
-
-
-def _named_counts(breakaways: tuple[np.ndarray, np.ndarray], held: bool) -> dict:
-    """`FitVerdict.breakaways` from per-regime counts (training
-    breakaways, held-out rests)."""
-    roles = ("training_breakaways", "held_out_rests") if held else ("training_breakaways",)
-    return {
-        role: {name: int(n) for name, n in zip(REGIMES, counts)}
-        for role, counts in zip(roles, breakaways)
-    }
 
 
 def json_safe(obj):

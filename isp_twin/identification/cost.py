@@ -76,24 +76,30 @@ def simulate_data(
 
 def model_breakaways(
     rate: RateParams,
-    data: Sequence[MeasuredData],
+    train: Sequence[MeasuredData],
+    held_out: Sequence[MeasuredData],
     side_source: str = "measured",
     rest_rate_deg_s: float = 0.1,
     effects: Sequence[EffectSpec] = (),
     timing: Timing = Timing(),
     integration: Integration = DEFAULT_INTEGRATION,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Per regime (`REGIMES` order), how often the model driven by the runs
-    (`simulate_data`) breaks away from rest (`breakaway_counts`) and how
-    many of its rests push against the regime (`rest_counts`); on the
-    axis's own rate where a sensor effect makes the reading differ."""
-    out = [
-        simulate_data(rate, d, side_source, rest_rate_deg_s, effects, timing, integration)
-        for d in data
-    ]
-    rates = [r.omega if r.omega_true is None else r.omega_true for r in out]
-    regimes = [r.regime for r in out]
-    return breakaway_counts(rates, regimes), rest_counts(rates, regimes)
+    """Per regime (`REGIMES` order): how often the model driven by the
+    `train` runs (`simulate_data`) breaks away from rest
+    (`breakaway_counts`), and how many of its rests on the `held_out` runs
+    push against the regime (`rest_counts`); on the axis's own rate where a
+    sensor effect makes the reading differ."""
+
+    def simulated(data):
+        out = [
+            simulate_data(rate, d, side_source, rest_rate_deg_s, effects, timing, integration)
+            for d in data
+        ]
+        return [r.omega if r.omega_true is None else r.omega_true for r in out], [
+            r.regime for r in out
+        ]
+
+    return breakaway_counts(*simulated(train)), rest_counts(*simulated(held_out))
 
 
 def residuals(

@@ -116,13 +116,18 @@ def _breakaways(
     train: Sequence[MeasuredData],
     validation: Sequence[MeasuredData],
 ) -> tuple:
-    """(the fitted model's breakaways from rest per regime on `train`, its
-    rests per regime on `validation`) (`model_breakaways`)."""
+    """The fitted model's breakaways per regime on `train` and rests on
+    `validation` (`model_breakaways`)."""
     s = result.settings
-    model = (s.side_source, s.rest_rate_deg_s, result.effects, result.timing, result.integration)
-    return (
-        model_breakaways(result.rate, train, *model)[0],
-        model_breakaways(result.rate, validation, *model)[1],
+    return model_breakaways(
+        result.rate,
+        train,
+        validation,
+        s.side_source,
+        s.rest_rate_deg_s,
+        result.effects,
+        result.timing,
+        result.integration,
     )
 
 
