@@ -34,6 +34,9 @@ __all__ = [
     "opened_stribeck",
     "ALPHA_STEP",
     "stepped_alpha",
+    "ALPHA_JOINT_STEP",
+    "every_alpha_stepped",
+    "alpha_positions",
     "robust_to_storage",
     "embed",
 ]
@@ -222,6 +225,29 @@ def stepped_alpha(z: np.ndarray, r: int, factor: float) -> np.ndarray:
     table = np.asarray(z, float).reshape(-1, RATE_LAYOUT.n_fields).copy()
     table[r, _ALPHA] += np.log(factor)
     return table.ravel()
+
+
+#: The factor by which `every_alpha_stepped` moves every visited regime's
+#: alpha at once, up and down. Reference clean seed 353 (a 6.6 ms axis)
+#: shaped it: from its fit (R- and L+ at 0.42 and 0.48 of the truth's alpha,
+#: 3.3 noise floors) every alpha x2 with the rest refined first reached the
+#: truth's minimum, x3 stopped at 1.5 floors (docs/identification.md
+#: "Stop 55").
+ALPHA_JOINT_STEP = 2.0
+
+
+def every_alpha_stepped(z: np.ndarray, factor: float) -> np.ndarray:
+    """`z` (5k,) with every visited regime's alpha multiplied by `factor`."""
+    table = np.asarray(z, float).reshape(-1, RATE_LAYOUT.n_fields).copy()
+    table[:, _ALPHA] += np.log(factor)
+    return table.ravel()
+
+
+def alpha_positions(n_free: int) -> np.ndarray:
+    """Boolean mask (n_free,) of the alphas among the search variables."""
+    mask = np.zeros((n_free // RATE_LAYOUT.n_fields, RATE_LAYOUT.n_fields), bool)
+    mask[:, _ALPHA] = True
+    return mask.ravel()
 
 
 def z_limits(x0: np.ndarray, u_peak: float, speed: float) -> tuple[np.ndarray, np.ndarray]:
