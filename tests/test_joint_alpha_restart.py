@@ -47,18 +47,23 @@ def test_the_joint_step_moves_every_alpha_by_the_factor_and_nothing_else():
 
 
 class _Search(SimpleNamespace):
-    """The parts of `fit._Search` the stage reads; records the held
-    refinements and the restarts."""
+    """The parts of `fit._Search` the stage reads; records the refinements.
+    A held refinement moves z by 0.5; a free one ends at the next of
+    `after`'s costs (else the current best)."""
 
     def refine(self, z, budget, held=None):
-        self.held.append((z.copy(), budget, None if held is None else held.copy()))
-        return z + 0.5, 0.0, "mock"
+        self.calls.append((z.copy(), budget, None if held is None else held.copy()))
+        if held is not None:
+            return z + 0.5, self.best_cost, "held"
+        self.last_refinement = "free"
+        cost = self.after.pop(0) if self.after else self.best_cost
+        return z + 1.0, cost, "free"
 
-    def restart(self, start, label):
-        self.starts.append((start.copy(), label))
+    def record(self, stage):
+        self.recorded.append(stage)
 
 
-def _search(cost, restart_at_noise=True):
+def _search(cost, restart_at_noise=True, after=()):
     return _Search(
         s=Settings(restart_at_noise=restart_at_noise),
         noise=1.0,
@@ -66,8 +71,11 @@ def _search(cost, restart_at_noise=True):
         z_best=np.zeros(4 * N),
         z_lo=np.full(4 * N, -10.0),
         z_hi=np.full(4 * N, 10.0),
-        held=[],
-        starts=[],
+        calls=[],
+        recorded=[],
+        status_parts=[],
+        last_refinement="before",
+        after=list(after),
     )
 
 
@@ -75,28 +83,46 @@ def _search(cost, restart_at_noise=True):
 def test_no_joint_step_at_the_noise_or_far_from_it(cost):
     search = _search(cost)
     fit._joint_alpha_restarts(search)
-    assert search.starts == [] and search.held == []
+    assert search.calls == [] and search.status_parts == []
 
 
 def test_no_joint_step_in_fits_that_skip_the_restarts_at_the_noise():
     search = _search(4.0, restart_at_noise=False)
     fit._joint_alpha_restarts(search)
-    assert search.starts == []
+    assert search.calls == []
 
 
 @pytest.mark.parametrize("cost", [1.1, 4.0, fit.JOINT_ALPHA_REACH])
-def test_above_near_noise_both_steps_are_fitted_with_the_alphas_held_then_restarted(cost):
+def test_above_near_noise_both_steps_are_fitted_with_the_alphas_held_then_freed(cost):
     search = _search(cost)
     fit._joint_alpha_restarts(search)
-    labels = [label for _, label in search.starts]
-    assert labels == [f"every alpha x{f}, the rest fitted to it first" for f in ("2", "0.5")]
-    for (z, budget, held), factor in zip(search.held, (ALPHA_JOINT_STEP, 0.5)):
+    held_calls, free_calls = search.calls[0::2], search.calls[1::2]
+    assert len(held_calls) == len(free_calls) == 2
+    for (z, budget, held), factor in zip(held_calls, (ALPHA_JOINT_STEP, 0.5)):
         assert budget == fit.HELD_ALPHA_EVALUATIONS
         np.testing.assert_array_equal(held, alpha_positions(4 * N))
         np.testing.assert_allclose(z, every_alpha_stepped(np.zeros(4 * N), factor))
-    # Each restart starts where its held refinement ended.
-    for (start, _), (z, _, _) in zip(search.starts, search.held):
-        np.testing.assert_allclose(start, z + 0.5)
+    # Each free refinement starts where its held one ended, with the budget.
+    for (z, budget, held), (z_held, _, _) in zip(free_calls, held_calls):
+        assert held is None and budget == Settings().refine_evaluations
+        np.testing.assert_allclose(z, z_held + 0.5)
+
+
+def test_a_restart_is_kept_only_where_it_gains_more_than_the_margin():
+    gain = fit.JOINT_ALPHA_GAIN
+    # x2 gains 25 %: kept; x0.5 gains half the margin on that: not kept.
+    search = _search(4.0, after=[3.0, 3.0 * (1 - gain / 2)])
+    fit._joint_alpha_restarts(search)
+    assert search.best_cost == 3.0
+    np.testing.assert_allclose(search.z_best, every_alpha_stepped(np.zeros(4 * N), 2.0) + 1.5)
+    assert search.status_parts[0].endswith("kept)")
+    assert "not kept" in search.status_parts[1]
+    assert search.last_refinement == "free"  # the kept one's
+    search = _search(4.0, after=[4.0 * (1 - gain / 2), 4.0])
+    fit._joint_alpha_restarts(search)
+    assert search.best_cost == 4.0
+    np.testing.assert_array_equal(search.z_best, np.zeros(4 * N))
+    assert search.last_refinement == "before"  # as if the stage had not run
 
 
 def _data(exp, name: str) -> MeasuredData:
@@ -122,7 +148,8 @@ def test_a_held_refinement_keeps_the_held_variables_and_lowers_the_cost():
 
 def test_seed_353_leaves_its_basin_and_reaches_the_noise_on_training(tmp_path):
     result, truth = identified_reference(tmp_path, 353, held_out="covered")
-    assert "least squares from every alpha x2" in result["status"]
+    assert "least squares from every alpha x2, the rest fitted to it first" in result["status"]
+    assert "kept)" in result["status"]
     sigma = truth["noise_sigma_deg_s"]
     for name in ("train1", "train2"):
         assert result["rmse_train"][name] / sigma <= 1.1
