@@ -29,9 +29,10 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    where the fit is above `NEAR_NOISE` floors but within
    `JOINT_ALPHA_REACH`, from every regime's alpha stepped up and down at
    once, the rest fitted to those alphas first (`every_alpha_stepped`),
-   kept likewise; then, where the fit is judged at
-   the noise but above `NEAR_NOISE` floors, from each regime's alpha
-   stepped up and down (`stepped_alpha`), kept likewise.
+   kept where it fits the runs better by more than `JOINT_ALPHA_GAIN`;
+   then, where the fit is judged at the noise but above `NEAR_NOISE`
+   floors, from each regime's alpha stepped up and down (`stepped_alpha`),
+   kept where it fits the runs better.
 5. **Global search**, only when the fit is still above
    `Settings.converged_ratio` noise floors (at the noise: the least squares
    restarted once from its own end, `Settings.restart_at_noise`):
@@ -716,12 +717,12 @@ def _joint_alpha_restarts(search: _Search) -> None:
     On a fast axis the alphas of two regimes trade against small moves of
     every other quantity: reference clean seed 353 (6.6 ms), R- and L+ at
     0.42 and 0.48 of the truth's alpha, 3.1/4.6 truth sigmas on training
-    (the truth 1.01/1.06). The straight path to the truth crosses a ridge of 4.4 floors;
-    from either alpha stepped alone, or from every alpha stepped with the rest
-    kept, the least squares walks back, the alphas first. With the alphas
-    held for a start it reaches the truth's minimum (docs/identification.md
-    "Stop 55"). With `Settings.restart_at_noise` off (diagnose's fits) it
-    does not run.
+    (the truth 1.01/1.06). The straight path to the truth crosses a ridge
+    of 4.4 estimated noise floors; from either alpha stepped alone, or from
+    every alpha stepped with the rest kept, the least squares walks back,
+    the alphas first. With the alphas held for a start it reaches the
+    truth's minimum (docs/identification.md "Stop 55"). With
+    `Settings.restart_at_noise` off (diagnose's fits) it does not run.
     """
     s = search.s
     if not (s.restart_at_noise and s.refine and s.refine_evaluations > 0):

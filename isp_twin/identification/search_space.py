@@ -230,9 +230,9 @@ def stepped_alpha(z: np.ndarray, r: int, factor: float) -> np.ndarray:
 #: The factor by which `every_alpha_stepped` moves every visited regime's
 #: alpha at once, up and down. Reference clean seed 353 (a 6.6 ms axis)
 #: shaped it: from its fit (R- and L+ at 0.42 and 0.48 of the truth's alpha,
-#: 3.3 noise floors) every alpha x2 with the rest refined first reached the
-#: truth's minimum, x3 stopped at 1.5 floors (docs/identification.md
-#: "Stop 55").
+#: 3.3 estimated noise floors) every alpha x2 with the rest refined first
+#: reached the truth's minimum (0.87), x3 stopped at 1.55
+#: (docs/identification.md "Stop 55").
 ALPHA_JOINT_STEP = 2.0
 
 
