@@ -66,6 +66,7 @@ class _Search(SimpleNamespace):
 def _search(cost, restart_at_noise=True, after=()):
     return _Search(
         s=Settings(restart_at_noise=restart_at_noise),
+        refining=True,
         noise=1.0,
         best_cost=cost,
         z_best=np.zeros(4 * N),

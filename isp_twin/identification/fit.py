@@ -505,10 +505,15 @@ class _Search:
             if self.progress is not None:
                 self.progress("refine", self.evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
         elif jacobian and "j" not in cache:
-            pts = z + np.diag(h)
-            self.evaluations += pts.shape[0]
-            e = self.residuals_of(from_z(pts))
-            cache["j"] = ((e - cache["e"]) / h[:, None]).T
+            cache["j"] = self.columns(z, np.ones(z.size, bool))
+
+    def columns(self, z: np.ndarray, moved: np.ndarray) -> np.ndarray:
+        """Forward differences at z (cached by `evaluate`) of the `moved`
+        search variables (boolean mask), one simulated set each: (M, moved)."""
+        h = 1e-6
+        pts = z + h * np.eye(z.size)[moved]
+        self.evaluations += pts.shape[0]
+        return ((self.residuals_of(from_z(pts)) - self.cache["e"]) / h).T
 
     def resid(self, z: np.ndarray) -> np.ndarray:
         self.evaluate(z, jacobian=False)
@@ -519,13 +524,14 @@ class _Search:
         return np.vstack([self.cache["j"], self.prior])
 
     def held_jac(self, z: np.ndarray, moved: np.ndarray) -> np.ndarray:
-        """`jac`'s columns of the `moved` variables only (one set each)."""
+        """`jac`'s columns of the `moved` variables only (`columns`)."""
         self.evaluate(z, jacobian=False)
-        h = 1e-6
-        pts = z + h * np.eye(z.size)[moved]
-        self.evaluations += pts.shape[0]
-        e = self.residuals_of(from_z(pts))
-        return np.vstack([((e - self.cache["e"]) / h).T, self.prior[:, moved]])
+        return np.vstack([self.columns(z, moved), self.prior[:, moved]])
+
+    @property
+    def refining(self) -> bool:
+        """Whether refinement is on (`Settings.refine`, a budget above 0)."""
+        return self.s.refine and self.s.refine_evaluations > 0
 
     def refine(
         self, z: np.ndarray, budget: int, held: np.ndarray | None = None
@@ -566,7 +572,7 @@ class _Search:
         The best cost goes to the history after a refinement, or when a
         `stage` names the step (recorded without refinement too).
         """
-        refined = self.s.refine and self.s.refine_evaluations > 0
+        refined = self.refining
         if refined:
             z, cost, msg = self.refine(z, budget or self.s.refine_evaluations)
             self.status_parts.append(f"least squares from {label} ({msg})")
@@ -663,7 +669,7 @@ def _other_reading_restart(search: _Search) -> None:
     s = search.s
     if s.timing is not None or s.side_source != "measured" or not s.restart_at_noise:
         return
-    if not (s.refine and s.refine_evaluations > 0):
+    if not search.refining:
         return
     budget = s.refine_evaluations
     if search.best_cost <= NEAR_NOISE * search.noise:
@@ -725,7 +731,7 @@ def _joint_alpha_restarts(search: _Search) -> None:
     `Settings.restart_at_noise` off (diagnose's fits) it does not run.
     """
     s = search.s
-    if not (s.restart_at_noise and s.refine and s.refine_evaluations > 0):
+    if not (s.restart_at_noise and search.refining):
         return
     if not NEAR_NOISE * search.noise < search.best_cost <= JOINT_ALPHA_REACH * search.noise:
         return

@@ -209,7 +209,7 @@ def opened_stribeck(z: np.ndarray, regimes: Sequence[int], speed: float) -> np.n
 ALPHA_STEP = 3.0
 
 
-def stepped_alpha(z: np.ndarray, r: int, factor: float) -> np.ndarray:
+def stepped_alpha(z: np.ndarray, r: int | slice, factor: float) -> np.ndarray:
     """`z` (5k,) with visited regime r's alpha multiplied by `factor`, the rest kept.
 
     A fit that stops a few percent above the noise can hold a regime whose
@@ -238,9 +238,7 @@ ALPHA_JOINT_STEP = 2.0
 
 def every_alpha_stepped(z: np.ndarray, factor: float) -> np.ndarray:
     """`z` (5k,) with every visited regime's alpha multiplied by `factor`."""
-    table = np.asarray(z, float).reshape(-1, RATE_LAYOUT.n_fields).copy()
-    table[:, _ALPHA] += np.log(factor)
-    return table.ravel()
+    return stepped_alpha(z, slice(None), factor)
 
 
 def alpha_positions(n_free: int) -> np.ndarray:
