@@ -54,6 +54,7 @@ class _Search(SimpleNamespace):
     def refine(self, z, budget, held=None):
         self.calls.append((z.copy(), budget, None if held is None else held.copy()))
         if held is not None:
+            self.last_refinement = "held"
             return z + 0.5, self.best_cost, "held"
         self.last_refinement = "free"
         cost = self.after.pop(0) if self.after else self.best_cost

@@ -738,9 +738,9 @@ def _joint_alpha_restarts(search: _Search) -> None:
     held = alpha_positions(search.z_best.size)
     base = search.z_best
     for factor in (ALPHA_JOINT_STEP, 1.0 / ALPHA_JOINT_STEP):
+        before = search.last_refinement
         start = np.clip(every_alpha_stepped(base, factor), search.z_lo, search.z_hi)
         z, _, _ = search.refine(start, HELD_ALPHA_EVALUATIONS, held)
-        before = search.last_refinement
         z, cost, msg = search.refine(z, s.refine_evaluations)
         kept = cost < (1.0 - JOINT_ALPHA_GAIN) * search.best_cost
         said = "kept" if kept else f"not kept: less than {JOINT_ALPHA_GAIN:.0%} better"
