@@ -442,7 +442,7 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     best at the file's parameters, which lack the effect, so it can absorb
     part of it and hold the global step in the wrong basin: on reference
     LuGre seed 357 the file reads the gyro at the sample where the truth
-    averages it; the global step ended at 3.0 truth sigmas on training (6.4
+    averages it; the global step ended at 3.0 noise floors on training (6.4
     held out), and with the read-out chosen again (averaged) at 1.15 (2.9
     held out, LuGre within 8 %). The polish and the held-out judgement stay
     at the data's read-out (docs/diagnosis.md "Stop 56").
