@@ -94,6 +94,13 @@ JOINT_ITER = 8
 #: the true stiffness (docs/diagnosis.md "Stop 21").
 GLOBAL_CYCLES = 3
 GLOBAL_GAIN = 0.01
+#: Differential-evolution generations of `_refit_globally`'s `identify`:
+#: none, as in every other `identify_held` of diagnose. The 20 generations
+#: and the least squares from their best lowered the training cost of
+#: reference LuGre seed 367's three global refits by 0.002-0.32 %, at
+#: 11-46 s each; in identify's own fits over 412 benchmark axes, by more
+#: than 0.1 % on 8, at most 0.46 % (docs/diagnosis.md "Stop 57").
+GLOBAL_GENERATIONS = 0
 
 #: The constant torque, and the leading torques with a constant part whose
 #: global step it also gets (`_offset_alternative`).
@@ -849,10 +856,14 @@ def _refit_globally(
     global step chooses the read-out timing again with the effect held
     (`_torque_global_stage`); else it keeps the data's. The polish, and every
     judgement after it, stay at the data's read-out.
+
+    Without identify's differential evolution (`GLOBAL_GENERATIONS`), as
+    every other `identify_held` of diagnose.
     """
     params = dict(fit.params) if held is None else dict(held)
     held = tuple(fit.fixed) + (EffectSpec(fit.name, params),)
-    again = identify_held(data, held, timing=None if free_read_out else data.timing)
+    timing = None if free_read_out else data.timing
+    again = identify_held(data, held, timing=timing, generations=GLOBAL_GENERATIONS)
     return fit_candidates(
         data.train,
         again.vector,
