@@ -456,10 +456,12 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     """
     if rms_of(st.held_of[top]) <= CONVERGED_RATIO * st.floor:
         return verdicts
-    joint = [dict(starts[top].effect.params)] if top in starts else []
-    # The joint estimate's global step chooses the read-out again (docstring).
-    firsts = [_refit_globally(data, st.fits[top], held, free_read_out=True) for held in joint]
-    if not joint or top in OWN_FIT_TOO:
+    firsts = []
+    if top in starts:
+        # The joint estimate's global step chooses the read-out again (docstring).
+        joint = dict(starts[top].effect.params)
+        firsts.append(_refit_globally(data, st.fits[top], joint, free_read_out=True))
+    if top not in starts or top in OWN_FIT_TOO:
         firsts.append(_refit_globally(data, st.fits[top]))
     # The better one refitted again (`_global_cycles`).
     g = _global_cycles(data, min(firsts, key=lambda f: f.sse))
