@@ -16,7 +16,15 @@ from isp_twin.errors import DataError
 from isp_twin.identification.cost import rmse
 from isp_twin.identification.equation_error import equation_error_estimate
 from isp_twin.identification.experiments import PAPER_SET, generate_set
-from isp_twin.identification.fit import IdentificationStatus, Settings, identify, to_axis_params
+from isp_twin.identification.fit import (
+    DE_STALL_GAIN,
+    DE_STALL_GENERATIONS,
+    IdentificationStatus,
+    Settings,
+    identify,
+    stalled,
+    to_axis_params,
+)
 from isp_twin.identification.measured import save_measured
 from isp_twin.identification.side_angle import fused_angle
 from isp_twin.model.parameters import (
@@ -188,6 +196,32 @@ def test_the_outcome_says_why_a_fit_above_the_noise_ended(paper_params, truth, c
     assert res.cost > s.converged_ratio * res.noise
     assert res.outcome is outcome
     assert ("search" in {step.stage for step in res.log}) == (s.generations > 0)
+
+
+def test_stalled_counts_the_gain_over_the_last_generations():
+    n, gain = DE_STALL_GENERATIONS, DE_STALL_GAIN
+    flat = [1.0] * (n + 1)
+    assert stalled(flat) and not stalled(flat[:-1])
+    # Twice the gain per window, for three windows: never stalled.
+    steady = [(1 - 2 * gain / n) ** k for k in range(3 * n)]
+    assert not any(stalled(steady[:k]) for k in range(1, len(steady) + 1))
+    # Half of it: stalled once a window has passed.
+    slow = [(1 - 0.5 * gain / n) ** k for k in range(n + 1)]
+    assert stalled(slow)
+
+
+def test_the_evolution_stops_at_its_first_stall(paper_params, truth):
+    # Half the noise floor forces the global search (as above); it starts
+    # from the least squares' end, which its population does not beat.
+    data = _data(paper_params, 0.02, excitations=SHORT[:1])
+    s = dataclasses.replace(FAST, converged_ratio=0.5, generations=20, population=8)
+    res = identify(data, _perturbed_prior(truth), s)
+    first = next(k for k, step in enumerate(res.log) if step.stage == "search")
+    costs = [res.log[first - 1].best_cost]
+    costs += [step.best_cost for step in res.log if step.stage == "search"]
+    assert len(costs) - 1 < s.generations
+    assert stalled(costs) and not any(stalled(costs[:k]) for k in range(1, len(costs)))
+    assert f"({len(costs) - 1} of {s.generations} generations, stalled)" in res.status
 
 
 def test_no_visited_regime_is_an_error(paper_params, truth):
