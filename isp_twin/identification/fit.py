@@ -40,9 +40,10 @@ The pipeline (Eq. 8-9 of the paper, made identifiable):
    seeded, vectorized: the population is the batch dimension of
    `isp_twin.model.axis_model.simulate`) in a box around the best point,
    stopped once `DE_STALL_GENERATIONS` generations gain less than
-   `DE_STALL_GAIN` (`stalled`), then least squares again. The result is taken in the form the parameter file
-   stores (6 digits), moved off a stick/slip threshold if the rounding would
-   spoil the fit (`robust_to_storage`).
+   `DE_STALL_GAIN` (`stalled`), then least squares again. The result is
+   taken in the form the parameter file stores (6 digits), moved off a
+   stick/slip threshold if the rounding would spoil the fit
+   (`robust_to_storage`).
 6. **Confidence intervals** (`isp_twin.estimation.intervals`): ``cov = s^2 (J^T J)^-1``,
    inflated by ``(1 + rho)/(1 - rho)`` for a lag-1 residual correlation
    rho > 0 (effective sample size), with the Student t quantile. A
