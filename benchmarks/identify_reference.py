@@ -338,9 +338,7 @@ def one_axis(
         "right" if selected == right else ("none" if selected == "none" else "other")
     )
     rec["diagnose_heldout_over_noise"] = diag["rmse_after"] / (sigma * DEG)
-    rec["diagnose_tentative"] = list(diag.get("tentative_effects", []))
-    rec["diagnose_equivalent"] = list(diag.get("equivalent_effects", []))
-    rec["held_out_rests_untrained"] = _untrained_rests(diag)
+    rec.update(_diagnose_lists(diag))
     # adopted though not at the noise held out (docs/diagnosis.md "Stop 45")
     rec["diagnose_training_explained"] = diag.get("training_explained") is not None
     if case == "torque_offset":
@@ -472,26 +470,25 @@ def table(records: list[dict], case: str) -> str:
 
 
 def _with_tentative(rec: dict, workdir: Path) -> dict:
-    """The record with ``diagnose_tentative``, ``diagnose_equivalent`` and
-    ``held_out_rests_untrained`` (read from its diagnose.json when the record
-    predates those fields)."""
-    fields = {
-        "diagnose_tentative": "tentative_effects",
-        "diagnose_equivalent": "equivalent_effects",
-    }
-    missing = [k for k in [*fields, "held_out_rests_untrained"] if k not in rec]
+    """The record with the fields of `_diagnose_lists` (read from its
+    diagnose.json when the record predates them)."""
     path = workdir / rec["case"] / f"seed{rec['seed']}" / "diagnose.json"
+    missing = _diagnose_lists({}).keys() - rec.keys()
     if missing and path.exists():
-        diag = json.loads(path.read_text())
-        for k in missing:
-            rec[k] = diag.get(fields[k], []) if k in fields else _untrained_rests(diag)
+        rec = {**_diagnose_lists(json.loads(path.read_text())), **rec}
     return rec
 
 
-def _untrained_rests(diag: dict) -> list[str]:
-    """The regimes diagnose's JSON names as held-out rests where its model
-    never breaks away on the training runs."""
-    return [e["regime"] for e in diag.get("held_out_breakaways_untrained", [])]
+def _diagnose_lists(diag: dict) -> dict:
+    """The lists a record keeps from diagnose's JSON: the tentative and the
+    equivalent effects, and the regimes where the held-out run rests but the
+    model never breaks away on the training runs."""
+    untrained = diag.get("held_out_breakaways_untrained", [])
+    return {
+        "diagnose_tentative": list(diag.get("tentative_effects", [])),
+        "diagnose_equivalent": list(diag.get("equivalent_effects", [])),
+        "held_out_rests_untrained": [e["regime"] for e in untrained],
+    }
 
 
 def _with_coverage(rec: dict, workdir: Path) -> dict:
