@@ -206,7 +206,7 @@ def _judged_again(diag, data, checked, params, options, before_held) -> Diagnosi
     """A tentative effect judged again at its own read-out, beside its
     rivals (`_tentative_read_out`), and a tentative payload resonance on
     its side (`_payload_side`); each kept if it adopts an effect."""
-    again = _tentative_read_out(diag, data)
+    again = _tentative_read_out(diag, data, checked, options)
     if again is not None:
         data2 = _prepared_at(checked, options, again.timing)
         diag = _at_read_out(diag, data, data2, again, params, before_held)
@@ -449,10 +449,13 @@ def _others_there(there: DiagnosisData, rnd, tentative) -> list:
     return [nxt]
 
 
-def _tentative_read_out(diag: Diagnosis, data: DiagnosisData) -> IdentificationResult | None:
+def _tentative_read_out(
+    diag: Diagnosis, data: DiagnosisData, checked, options
+) -> IdentificationResult | None:
     """`identify` with a tentative effect held (`READ_OUT_EFFECTS`), the
     read-out chosen again, when it chooses another gyro read-out than the
-    data's, or at the other gyro read-out where the effect refitted there
+    data's (or that read-out with its other gyro reading, `_reading_refitted`),
+    or at the other gyro read-out where the effect refitted there
     fits the training runs better (`_other_gyro_read_out`); else None.
     `diagnose` then judges the base, the effect and its rivals again at
     that read-out (`round_at_read_out`, `_rival_starts`) and keeps that
@@ -473,11 +476,43 @@ def _tentative_read_out(diag: Diagnosis, data: DiagnosisData) -> IdentificationR
     fit = diag.rounds[0].fits[names[0]]
     again = identify_held(data, fit.effects(), timing=None, generations=0)
     if again.timing.gyro_average != data.timing.gyro_average:
-        return again
+        return _reading_refitted(again, fit, _prepared_at(checked, options, again.timing))
     flipped = _other_gyro_read_out(data, fit)
     if flipped is None:
         return None
     return identify_held(data, flipped.effects(), timing=_flipped_timing(data), generations=0)
+
+
+def _reading_refitted(
+    again: IdentificationResult, fit: CandidateFit, there: DiagnosisData
+) -> IdentificationResult:
+    """`again` (`identify` with `fit`'s effect held, the read-out chosen
+    again; `there`: the data at that read-out), or `identify` there with the
+    other gyro reading, where the effect refitted at that reading fits the
+    training runs better than refitted at `again`'s by `FLIP_GAIN`
+    (`_other_gyro_read_out`).
+
+    `identify` chooses the read-out with the effect held at the values
+    fitted at the data's read-out, and a delay trades with the gyro's
+    averaging (half a sample): reference input delay seed 379 (stop 58's
+    fresh axes, truth 8.1 ms, the gyro averaged), the delay fitted at the
+    data's read-out at 8.68 ms, `identify` with it held chose the point
+    reading (held out 72 noise sigmas); refitted at the averaged reading
+    with the half-plane `identify` chose, 8.06 ms, the training runs 2.6 %
+    lower in mean square and held out 1.00 (docs/diagnosis.md "Stop 59").
+    """
+    refit = fit_candidates(
+        there.train,
+        again.vector,
+        [fit.name],
+        fit.fixed,
+        starts={fit.name: dict(fit.params)},
+        max_iter=there.max_iter,
+    )[fit.name]
+    flipped = _other_gyro_read_out(there, refit)
+    if flipped is None:
+        return again
+    return identify_held(there, flipped.effects(), timing=_flipped_timing(there), generations=0)
 
 
 def _flipped_timing(data: DiagnosisData) -> Timing:
