@@ -371,14 +371,7 @@ def _read_out_with(
     if again.timing == data.timing:
         return again, None
     there = _prepared_at(checked, options, again.timing)
-    refit = fit_candidates(
-        there.train,
-        again.vector,
-        [model.name],
-        model.fixed,
-        starts={model.name: dict(model.params)},
-        max_iter=data.max_iter,
-    )[model.name]
+    refit = _refitted(model, there.train, again.vector, data.max_iter)
     gained = refit.sse / refit.n_samples < (1.0 - FLIP_GAIN) * model.sse / model.n_samples
     return again, (there if gained else None)
 
@@ -494,21 +487,14 @@ def _reading_refitted(
 
     `identify` chooses the read-out with the effect held at the values
     fitted at the data's read-out, and a delay trades with the gyro's
-    averaging (half a sample): reference input delay seed 379 (stop 58's
+    averaging (half a sample): reference input delay seed 379 (stop 59's
     fresh axes, truth 8.1 ms, the gyro averaged), the delay fitted at the
     data's read-out at 8.68 ms, `identify` with it held chose the point
     reading (held out 72 noise sigmas); refitted at the averaged reading
     with the half-plane `identify` chose, 8.06 ms, the training runs 2.6 %
     lower in mean square and held out 1.00 (docs/diagnosis.md "Stop 59").
     """
-    refit = fit_candidates(
-        there.train,
-        again.vector,
-        [fit.name],
-        fit.fixed,
-        starts={fit.name: dict(fit.params)},
-        max_iter=there.max_iter,
-    )[fit.name]
+    refit = _refitted(fit, there.train, again.vector, there.max_iter)
     flipped = _other_gyro_read_out(there, refit)
     if flipped is None:
         return again
@@ -547,19 +533,18 @@ def _other_gyro_read_out(data: DiagnosisData, fit: CandidateFit) -> CandidateFit
         integration=data.integration,
     )
     there = identify_held(data, fit.effects(), timing=timing, generations=0)
-    refits = [
-        fit_candidates(
-            train,
-            x,
-            [fit.name],
-            fit.fixed,
-            starts={fit.name: dict(fit.params)},
-            max_iter=data.max_iter,
-        )[fit.name]
-        for x in (fit.rate_vector, there.vector)
-    ]
+    refits = [_refitted(fit, train, x, data.max_iter) for x in (fit.rate_vector, there.vector)]
     refit = min(refits, key=lambda f: f.sse)
     return refit if refit.sse < (1.0 - FLIP_GAIN) * fit.sse else None
+
+
+def _refitted(fit: CandidateFit, train, x: np.ndarray, max_iter: int) -> CandidateFit:
+    """`fit`'s effect refitted on `train` (a run stack), rate and effect
+    parameters together, from the rate vector `x` and the effect's values."""
+    starts = {fit.name: dict(fit.params)}
+    return fit_candidates(train, x, [fit.name], fit.fixed, starts=starts, max_iter=max_iter)[
+        fit.name
+    ]
 
 
 def _rival_starts(diag: Diagnosis, data: DiagnosisData, again: IdentificationResult) -> dict:
