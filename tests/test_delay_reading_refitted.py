@@ -15,22 +15,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from truth_error import measured_runs, truth_parameter_set
+from truth_error import prepared_reference
 
 from isp_twin.diagnosis import search
 from isp_twin.diagnosis.candidates import fit_candidates, holdout_residual
-from isp_twin.diagnosis.prepared_runs import checked_inputs
 from isp_twin.diagnosis.rounds import identify_held
 from isp_twin.identification.cost import rmse
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import EffectSpec
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION
-from isp_twin.reference import design_experiment
 
 SEED = 379
 AXIS = "inner_az"
 POINT = Timing(0.0, False)
-OPTIONS = ("measured", 0, DEFAULT_INTEGRATION, POINT, False, 8, 2)
 #: Where `diagnose`'s first round left the delay on this axis [s]: long
 #: by about half a sample.
 LONG_DELAY_S = 0.00868
@@ -40,19 +36,13 @@ LONG_DELAY_S = 0.00868
 def case():
     """(the data at the point reading, `identify` there with the long delay
     held, the delay refitted there from it, the held-out run, the truth)."""
-    exp = design_experiment(SEED, "input_delay", held_out="covered")
-    truth = exp.truth()
+    checked, data, _, truth = prepared_reference(SEED, "input_delay", AXIS, POINT, ["input_delay"])
     assert truth["sensors"]["gyro_averaged"]
-    params = truth_parameter_set(truth, AXIS, POINT)
-    runs = measured_runs(exp)
-    checked = checked_inputs([runs["train1"], runs["train2"]], [runs["heldout"]], params,
-                             AXIS, ["input_delay"], "measured")  # fmt: skip
-    data = search._prepared(checked, *OPTIONS)[0]
     long = EffectSpec("input_delay", {"delay_s": LONG_DELAY_S})
     again = identify_held(data, (long,), timing=POINT, generations=0)
     fit = fit_candidates(data.train, again.vector, ["input_delay"], (),
                          starts={"input_delay": dict(long.params)}, max_iter=8)["input_delay"]  # fmt: skip
-    return data, again, fit, runs["heldout"], truth
+    return data, again, fit, checked[1][0], truth  # the held-out run as given
 
 
 def test_at_the_point_reading_the_delay_fits_training_and_fails_held_out(case):

@@ -15,42 +15,29 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from truth_error import measured_runs, truth_parameter_set
+from truth_error import diagnose_options, prepared_reference
 
 from isp_twin.diagnosis import search
 from isp_twin.diagnosis.candidates import fit_candidates, holdout_residual
-from isp_twin.diagnosis.prepared_runs import checked_inputs
 from isp_twin.diagnosis.rounds import identify_held
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import EffectSpec
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION
-from isp_twin.reference import design_experiment
 
 SEED = 337
 AXIS = "inner_az"
 #: The read-out the base model chose on this axis: gyro averaged, the
 #: half-plane read 0.75 sample after the step's start.
 BASE_TIMING = Timing(0.75, True)
-OPTIONS = ("measured", 0, DEFAULT_INTEGRATION, BASE_TIMING, False, 8, 2)
+OPTIONS = diagnose_options(BASE_TIMING)
 
 
 @pytest.fixture(scope="module")
 def case():
     """(the checked inputs, the data at the base's read-out, the saturation
     fitted there, the gyro's sigma [rad/s], the parameter set)."""
-    exp = design_experiment(SEED, "saturation", held_out="covered")
-    truth = exp.truth()
-    params = truth_parameter_set(truth, AXIS, BASE_TIMING)
-    runs = measured_runs(exp)
-    checked = checked_inputs(
-        [runs["train1"], runs["train2"]],
-        [runs["heldout"]],
-        params,
-        AXIS,
-        ["saturation"],
-        "measured",
+    checked, data, params, truth = prepared_reference(
+        SEED, "saturation", AXIS, BASE_TIMING, ["saturation"]
     )
-    data = search._prepared(checked, *OPTIONS)[0]
     limit = dict(truth["effects"][0]["params"])
     start = identify_held(data, (EffectSpec("saturation", limit),), timing=BASE_TIMING,
                           generations=0)  # fmt: skip

@@ -17,22 +17,19 @@ from __future__ import annotations
 from dataclasses import replace
 
 import pytest
-from truth_error import measured_runs, truth_parameter_set
+from truth_error import diagnose_options, prepared_reference
 
 from isp_twin.diagnosis import search
-from isp_twin.diagnosis.prepared_runs import checked_inputs
 from isp_twin.diagnosis.rounds import diagnosis_round, identify_held
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import EffectSpec
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION
-from isp_twin.reference import design_experiment
 
 SEED = 375
 AXIS = "inner_az"
 #: The read-out the base model chose on this axis: the gyro read at the
 #: sample, the half-plane at the step's start.
 BASE_TIMING = Timing(0.0, False)
-OPTIONS = ("measured", 0, DEFAULT_INTEGRATION, BASE_TIMING, False, 8, 2)
+OPTIONS = diagnose_options(BASE_TIMING)
 
 
 @pytest.fixture(scope="module")
@@ -40,19 +37,9 @@ def case():
     """(the checked inputs, the data at the base's read-out, the parameter
     set, the given model held out, the diagnosis of two rounds there: the
     sensor bias from its true values, then the input delay)."""
-    exp = design_experiment(SEED, "sensor_bias", held_out="covered")
-    truth = exp.truth()
-    params = truth_parameter_set(truth, AXIS, BASE_TIMING)
-    runs = measured_runs(exp)
-    checked = checked_inputs(
-        [runs["train1"], runs["train2"]],
-        [runs["heldout"]],
-        params,
-        AXIS,
-        ["sensor_bias", "input_delay"],
-        "measured",
+    checked, data, params, truth = prepared_reference(
+        SEED, "sensor_bias", AXIS, BASE_TIMING, ["sensor_bias", "input_delay"]
     )
-    data = search._prepared(checked, *OPTIONS)[0]
     spec = EffectSpec("sensor_bias", dict(truth["effects"][0]["params"]))
     start = identify_held(data, (spec,), timing=BASE_TIMING, generations=0)
     first = search.round_at_read_out(data, {"sensor_bias": (start.vector, spec)}, ())

@@ -18,16 +18,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from truth_error import measured_runs, truth_parameter_set
+from truth_error import prepared_reference
 
 from isp_twin.diagnosis import rounds
-from isp_twin.diagnosis.prepared_runs import checked_inputs
 from isp_twin.diagnosis.rounds import identify_held, round_at_read_out
-from isp_twin.diagnosis.search import _prepared
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import EffectSpec
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION
-from isp_twin.reference import design_experiment
 
 SEED = 337
 AXIS = "inner_az"
@@ -39,13 +35,7 @@ TIMING = Timing(0.25, True)
 def case():
     """(the data at the averaged read-out, the truth's LuGre, the gyro's
     sigma [rad/s]); the parameter file holds the truth's rate form."""
-    exp = design_experiment(SEED, "lugre", held_out="covered")
-    truth = exp.truth()
-    params = truth_parameter_set(truth, AXIS, TIMING)
-    runs = measured_runs(exp)
-    train = [runs["train1"], runs["train2"]]
-    checked = checked_inputs(train, [runs["heldout"]], params, AXIS, ["lugre"], "measured")
-    data = _prepared(checked, "measured", 0, DEFAULT_INTEGRATION, TIMING, False, 8, 2)[0]
+    _, data, _, truth = prepared_reference(SEED, "lugre", AXIS, TIMING, ["lugre"])
     bristles = dict(truth["effects"][0]["params"])
     return data, bristles, truth["sensors"]["gyro_noise_rad_s"]
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from isp_twin.diagnosis.prepared_runs import checked_inputs
+from isp_twin.diagnosis.search import _prepared
 from isp_twin.estimation.parameter_file import fitted_axis
 from isp_twin.identification.cost import rmse
 from isp_twin.identification.measured import MeasuredData
@@ -60,6 +62,27 @@ def measured_runs(exp) -> dict[str, MeasuredData]:
         n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])
         for n, r in exp.runs.items()
     }
+
+
+def diagnose_options(timing: Timing) -> tuple:
+    """`diagnose`'s options (`isp_twin.diagnosis.search._prepared`'s order)
+    on the fused angle at the read-out `timing`: seed 0, the default
+    integration, no base search, 8 iterations, 2 per fold."""
+    return ("measured", 0, DEFAULT_INTEGRATION, timing, False, 8, 2)
+
+
+def prepared_reference(seed: int, effect: str, axis: str, timing: Timing, candidates) -> tuple:
+    """(the checked inputs, the data `diagnose` prepares at the read-out
+    `timing` (`diagnose_options`), the parameter set holding the truth's
+    rate form, the truth) of reference axis `seed` with `effect`, its
+    held-out run of the covered design; `candidates`: the effects to test."""
+    exp = design_experiment(seed, effect, held_out="covered")
+    truth = exp.truth()
+    params = truth_parameter_set(truth, axis, timing)
+    runs = measured_runs(exp)
+    train, held = [runs["train1"], runs["train2"]], [runs["heldout"]]
+    checked = checked_inputs(train, held, params, axis, candidates, "measured")
+    return checked, _prepared(checked, *diagnose_options(timing))[0], params, truth
 
 
 def truth_error(seed: int, effect: str, integration: Integration) -> list[float]:
