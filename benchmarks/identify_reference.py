@@ -484,10 +484,16 @@ def _diagnose_lists(diag: dict) -> dict:
     equivalent effects, and the regimes where the held-out run rests but the
     model never breaks away on the training runs."""
     untrained = diag.get("held_out_breakaways_untrained", [])
+    parts = [p["rmse_over_noise_floor"] for p in diag.get("held_out_before_untrained_rest", [])]
     return {
         "diagnose_tentative": list(diag.get("tentative_effects", [])),
         "diagnose_equivalent": list(diag.get("equivalent_effects", [])),
         "held_out_rests_untrained": [e["regime"] for e in untrained],
+        # the held-out error before the first of those rests (diagnose's
+        # ``held_out_before_untrained_rest``, from stop 60), the worst run's
+        "held_out_determined_over_noise": max(
+            (math.inf if x is None else x for x in parts), default=None
+        ),
     }
 
 
@@ -526,8 +532,28 @@ def coverage_lines(records: list[dict], case: str) -> list[str]:
             "held_out_rests_untrained",
             "held-out rests where the training runs never break away",
         )
+        + determined_lines(records, case)
         + open_lines(records, case)
     )
+
+
+def determined_lines(records: list[dict], case: str) -> list[str]:
+    """Of the axes whose held-out run rests where the diagnosed model never
+    breaks away on the training runs, how many read within the bound before
+    the first of those rests (``held_out_determined_over_noise``) while the
+    whole run does not: the part of the miss the training runs cannot
+    decide (docs/diagnosis.md "Stop 60")."""
+    known = [r for r in records if r.get("held_out_determined_over_noise") is not None]
+    if not known:
+        return []
+    lim = bound(case)
+    key = "identify_heldout_over_noise" if case == "clean" else "diagnose_heldout_over_noise"
+    missed = [r for r in known if r.get(key, math.inf) > lim]
+    before = [r for r in missed if r["held_out_determined_over_noise"] <= lim]
+    return [
+        f"{case}: held-out above {lim}x with untrained rests on {len(missed)}/{len(known)} axes; "
+        f"within {lim}x before the first of those rests on {len(before)}/{len(missed)}"
+    ]
 
 
 def _split_line(records: list[dict], case: str, field: str, what_split: str) -> list[str]:

@@ -67,3 +67,34 @@ def test_an_older_record_reads_the_regimes_from_its_diagnose_json(tmp_path):
     kept = {"case": "cogging", "seed": 7, "held_out_rests_untrained": []}
     kept.update(diagnose_tentative=[], diagnose_equivalent=[])
     assert reference_benchmark()._with_tentative(kept, tmp_path)["held_out_rests_untrained"] == []
+
+
+def _determined(seed: int, answer: str, after: float, before: float | None) -> dict:
+    rec = _axis(seed, answer, after, ["L-"] if before is not None else [])
+    rec["held_out_determined_over_noise"] = before
+    return rec
+
+
+def test_the_misses_within_the_bound_before_the_first_untrained_rest_are_counted():
+    records = [
+        _determined(1, "none", 88.0, 1.05),  # a miss the training runs cannot decide
+        _determined(2, "right", 9.6, 2.0),  # a miss before the rest too
+        _determined(3, "right", 1.2, 1.1),  # within the bound: not a miss
+        _determined(4, "right", 4.0, None),  # no untrained rest
+    ]
+    lines = reference_benchmark().determined_lines(records, "cogging")
+    assert lines == [
+        "cogging: held-out above 1.5x with untrained rests on 2/3 axes; "
+        "within 1.5x before the first of those rests on 1/2"
+    ]
+    assert reference_benchmark().determined_lines(records[3:], "cogging") == []
+
+
+def test_the_record_keeps_the_worst_held_out_run_before_its_untrained_rest():
+    parts = [{"rmse_over_noise_floor": 1.2}, {"rmse_over_noise_floor": 3.5}]
+    lists = reference_benchmark()._diagnose_lists({"held_out_before_untrained_rest": parts})
+    assert lists["held_out_determined_over_noise"] == 3.5
+    assert reference_benchmark()._diagnose_lists({})["held_out_determined_over_noise"] is None
+    nothing = [{"rmse_over_noise_floor": None}]  # a rest at the first samples
+    lists = reference_benchmark()._diagnose_lists({"held_out_before_untrained_rest": nothing})
+    assert lists["held_out_determined_over_noise"] == float("inf")

@@ -31,7 +31,7 @@ from isp_twin.estimation.coverage import (
     untrained_breakaways,
 )
 from isp_twin.estimation.verdict import CONVERGED_RATIO
-from isp_twin.identification.cost import model_breakaways
+from isp_twin.identification.cost import held_out_determined, model_breakaways
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
@@ -194,27 +194,23 @@ def _with_breakaways(result: dict, diag, axis: str, side: str, train, holdout) -
     """The final model's breakaways from rest per regime on the training runs
     and its rests on the held-out runs (`model_breakaways`) into `result`,
     and the regimes held-out rests push against where the training runs
-    never break away (`untrained_breakaways`) into its verdict where the
-    model fits the training runs within the limit and the held-out runs
-    not."""
+    never break away (`untrained_breakaways`), with each held-out run's
+    error before the model first rests there (`held_out_determined`), into
+    its verdict where the model fits the training runs within the limit and
+    the held-out runs not."""
     ax = diag.params_out.axis(axis)
-    counts = model_breakaways(
-        ax.rate_params(),
-        train,
-        holdout,
-        side,
-        effects=tuple(ax.effects),
-        timing=diag.timing,
-        integration=diag.integration,
-    )
+    model = {"effects": tuple(ax.effects), "timing": diag.timing, "integration": diag.integration}
+    counts = model_breakaways(ax.rate_params(), train, holdout, side, **model)
     untrained = untrained_breakaways(*counts)
+    determined = held_out_determined(ax.rate_params(), holdout, untrained, side, **model)
     result["breakaways"] = breakaway_table(*counts)
     result["held_out_breakaways_untrained"] = [b.to_json() for b in untrained]
-    said = breakaway_sentence(untrained).strip()
+    result["held_out_before_untrained_rest"] = [p.to_json(diag.noise_floor) for p in determined]
+    said = breakaway_sentence(untrained) + "".join(p.sentence(diag.noise_floor) for p in determined)
     residual = diag.stack.flat(np.asarray(diag.residual_after))
     trained = np.sqrt(np.mean(residual**2)) <= CONVERGED_RATIO * diag.noise_floor
-    if said and trained and not result["converged"]:
-        result["verdict"] += ". " + said
+    if said.strip() and trained and not result["converged"]:
+        result["verdict"] += ". " + said.strip()
 
 
 def _side_from_file(

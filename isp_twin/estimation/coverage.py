@@ -40,11 +40,22 @@ with a drive between the two levels: the axis breaks away, the fitted
 model stays, and the fit misses the run by 20 noise floors (the truth by
 1.01).
 
+`first_untrained_rest` marks where on a held-out run the model first
+rests against such a regime; the samples before it are the part of the run
+the training runs determine as far as breakaways go, and the verdicts
+state the held-out error there (`DeterminedPart`) beside the error over the
+whole run. On reference LuGre seed 379 (docs/diagnosis.md "Stop 60"),
+`identify` with diagnose's LuGre candidate held fits the training runs at
+1.11-1.16 noise floors and misses the held-out run by 88; before the
+model's first rest against L- (sample 1689 of 6000) it reads 1.05, the
+model without LuGre 10.5 (before sample 1693).
+
 Speeds are rad/s inside; the sentence prints deg/s (the paper's unit).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -56,6 +67,7 @@ from isp_twin.vocabulary import REGIMES
 
 __all__ = [
     "BEYOND_RATIO",
+    "DeterminedPart",
     "REACH_QUANTILE",
     "THIN_RATIO",
     "MIN_REST_SAMPLES",
@@ -66,6 +78,7 @@ __all__ = [
     "breakaway_counts",
     "breakaway_sentence",
     "breakaway_table",
+    "first_untrained_rest",
     "rest_counts",
     "untrained_breakaways",
     "reach_sentence",
@@ -160,6 +173,48 @@ class RegimeBreakaways:
 
     def to_json(self) -> dict:
         return {"regime": self.regime, "training_breakaways": 0, "held_out_rests": self.held_out}
+
+
+@dataclass(frozen=True)
+class DeterminedPart:
+    """A held-out run's error before the model first rests against a regime
+    where it never breaks away on the training runs (`first_untrained_rest`).
+
+    Attributes:
+        run: the held-out run's name.
+        samples: the samples before that rest (sample 0 included).
+        of_samples: the run's samples.
+        rmse: the RMS rate error over samples 1..samples-1 [rad/s] (nan
+            where there are none).
+    """
+
+    run: str
+    samples: int
+    of_samples: int
+    rmse: float
+
+    def to_json(self, noise_floor: float) -> dict:
+        ratio = self.rmse / noise_floor if noise_floor > 0 else math.inf
+        return {
+            "run": self.run,
+            "samples": self.samples,
+            "of_samples": self.of_samples,
+            "rmse_deg_s": _finite(self.rmse / DEG),
+            "rmse_over_noise_floor": _finite(ratio),
+        }
+
+    def sentence(self, noise_floor: float) -> str:
+        """What the advice says of it, with the run's noise floor [rad/s]."""
+        if not math.isfinite(self.rmse) or noise_floor <= 0:
+            return ""
+        return (
+            f"Before its first such rest (sample {self.samples} of {self.of_samples}) "
+            f"{self.run} reads {self.rmse / noise_floor:.2f} x the noise floor. "
+        )
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
 
 
 def _pooled(runs) -> tuple[np.ndarray, np.ndarray]:
@@ -304,6 +359,27 @@ def rest_counts(rates: Sequence[np.ndarray], regimes: Sequence[np.ndarray]) -> n
         for a, b in zip(*_rest_episodes(w)):
             counts[np.unique(regime[a:b])] += 1
     return counts
+
+
+def first_untrained_rest(rate: np.ndarray, regime: np.ndarray, untrained: Sequence[int]) -> int:
+    """The first sample of the model's first rest on a run (at least
+    `MIN_REST_SAMPLES` samples at exact rest) that the drive pushes towards
+    one of the `untrained` regime indices at some sample (as `rest_counts`
+    reads a rest); the run's length where none does.
+
+    Args:
+        rate: the model's own rate on the run [rad/s] (0.0 exactly at rest).
+        regime: the regime index of the step into each sample
+            (`AxisResponse.regime`).
+        untrained: regime indices (`REGIMES` order) where the model never
+            breaks away on the training runs.
+    """
+    regime = np.asarray(regime)
+    wanted = np.isin(np.arange(len(REGIMES)), list(untrained))
+    for a, b in zip(*_rest_episodes(rate)):
+        if wanted[regime[a:b]].any():
+            return int(a)
+    return int(np.size(rate))
 
 
 def untrained_breakaways(

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from isp_twin.estimation.coverage import (
+    DeterminedPart,
     RegimeBreakaways,
     RegimeReach,
     RegimeShare,
@@ -167,6 +168,9 @@ class FitVerdict:
             the training sets ("training_breakaways") and its rests against
             the regime on the held-out sets ("held_out_rests"); empty when
             not counted.
+        determined: per held-out set, its error before the model first
+            rests against an `untrained` regime (`DeterminedPart`); empty
+            where there is none.
     """
 
     rmse: Mapping[str, float]
@@ -179,6 +183,7 @@ class FitVerdict:
     thin: tuple[RegimeShare, ...] = ()
     untrained: tuple[RegimeBreakaways, ...] = ()
     breakaways: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
+    determined: tuple[DeterminedPart, ...] = ()
 
     def ratio(self, name: str) -> float:
         floor = self.noise_floor[name]
@@ -230,6 +235,9 @@ class FitVerdict:
             "held_out_spread": [json_safe(s.to_json()) for s in self.spread],
             "held_out_breakaways_untrained": [b.to_json() for b in self.untrained],
             "breakaways": {k: dict(v) for k, v in self.breakaways.items()},
+            "held_out_before_untrained_rest": [
+                p.to_json(self.noise_floor[p.run]) for p in self.determined
+            ],
         }
 
 
@@ -242,6 +250,7 @@ def fit_verdict(
     spread: Sequence[HeldOutSpread] = (),
     thin: Sequence[RegimeShare] = (),
     breakaways: tuple[np.ndarray, np.ndarray] | None = None,
+    determined: Sequence[DeterminedPart] = (),
 ) -> FitVerdict:
     """Judge per-set RMS errors [rad/s] against per-set noise floors [rad/s];
     where not converged, the advice opens with the held-out sets the
@@ -251,7 +260,8 @@ def fit_verdict(
     every training set is within the limit, those the held-out sets rest
     against where the training sets never break away (`breakaways`: the
     model's breakaways per regime on the training sets and its rests on the
-    held-out sets, `breakaway_sentence`)."""
+    held-out sets, `breakaway_sentence`), with each held-out set's error
+    before the model first rests there (`determined`)."""
     ratios = {n: rmse[n] / noise_floor[n] if noise_floor[n] > 0 else math.inf for n in rmse}
     converged = bool(ratios) and all(r <= CONVERGED_RATIO for r in ratios.values())
     undetermined = "".join(
@@ -264,7 +274,10 @@ def fit_verdict(
     # A static level the training runs do not measure explains a miss held
     # out only where the model fits the training runs.
     trained = all(r <= CONVERGED_RATIO for n, r in ratios.items() if n not in held_out)
-    unmeasured = breakaway_sentence(untrained) if trained else ""
+    unmeasured = ""
+    if trained and untrained:
+        parts = "".join(p.sentence(noise_floor[p.run]) for p in determined)
+        unmeasured = breakaway_sentence(untrained) + parts
     said = undetermined + reach_sentence(beyond) + thin_sentence(thin) + unmeasured + advice
     said = "" if converged else said
     return FitVerdict(
@@ -278,6 +291,7 @@ def fit_verdict(
         tuple(thin),
         untrained,
         counts,
+        tuple(determined),
     )
 
 

@@ -9,7 +9,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from isp_twin.estimation.coverage import breakaway_counts, rest_counts
+from isp_twin.estimation.coverage import (
+    DeterminedPart,
+    RegimeBreakaways,
+    breakaway_counts,
+    first_untrained_rest,
+    rest_counts,
+)
 from isp_twin.estimation.simulation_error import RunStack, predict_one, stack_runs
 from isp_twin.estimation.simulation_error import residuals as simulation_residuals
 from isp_twin.estimation.verdict import SCALE_DIFFERENCE, noise_floor_of
@@ -19,11 +25,13 @@ from isp_twin.identification.side_angle import with_side_angle
 from isp_twin.model.parameters import EffectSpec, RateParams
 from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.units import DEG
+from isp_twin.vocabulary import REGIMES
 
 __all__ = [
     "run_stack",
     "simulate_data",
     "model_breakaways",
+    "held_out_determined",
     "residuals",
     "rmse",
     "rate_noise",
@@ -100,6 +108,33 @@ def model_breakaways(
         ]
 
     return breakaway_counts(*simulated(train)), rest_counts(*simulated(held_out))
+
+
+def held_out_determined(
+    rate: RateParams,
+    held_out: Sequence[MeasuredData],
+    untrained: Sequence[RegimeBreakaways],
+    side_source: str = "measured",
+    rest_rate_deg_s: float = 0.1,
+    effects: Sequence[EffectSpec] = (),
+    timing: Timing = Timing(),
+    integration: Integration = DEFAULT_INTEGRATION,
+) -> tuple[DeterminedPart, ...]:
+    """Per held-out run, the model's error before it first rests against one
+    of the `untrained` regimes (`first_untrained_rest`, on the axis's own
+    rate where a sensor effect makes the reading differ); () where none."""
+    if not untrained:
+        return ()
+    wanted = [REGIMES.index(b.regime) for b in untrained]
+    parts = []
+    for d in held_out:
+        r = simulate_data(rate, d, side_source, rest_rate_deg_s, effects, timing, integration)
+        own = r.omega if r.omega_true is None else r.omega_true
+        first = first_untrained_rest(own, r.regime, wanted)
+        e = (np.asarray(r.omega) - np.asarray(d.omega))[1:first]
+        rms = float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
+        parts.append(DeterminedPart(d.name, first, int(np.size(own)), rms))
+    return tuple(parts)
 
 
 def residuals(

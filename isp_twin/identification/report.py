@@ -12,10 +12,15 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from isp_twin.estimation.coverage import beyond_training, thin_training
+from isp_twin.estimation.coverage import beyond_training, thin_training, untrained_breakaways
 from isp_twin.estimation.simulation_error import stack_runs
 from isp_twin.estimation.verdict import FitVerdict, fit_verdict, noise_floor_of
-from isp_twin.identification.cost import model_breakaways, rmse, simulate_data
+from isp_twin.identification.cost import (
+    held_out_determined,
+    model_breakaways,
+    rmse,
+    simulate_data,
+)
 from isp_twin.identification.fit import IdentificationResult
 from isp_twin.identification.held_out_spread import held_out_spread
 from isp_twin.identification.measured import MeasuredData
@@ -101,14 +106,15 @@ def identification_verdict(
     beyond, thin = beyond_training(*coverage), thin_training(*coverage)
     names = [d.name for d in validation]
     spread = held_out_spread(result, train, validation)
-    broke = _breakaways(result, train, validation)
-    verdict = fit_verdict(rmse_all, floors, names, ADVICE, beyond, spread, thin, broke)
+    broke, determined = _breakaways(result, train, validation)
+    found = (beyond, spread, thin, broke, determined)
+    verdict = fit_verdict(rmse_all, floors, names, ADVICE, *found)
     if verdict.converged or any(e.name == "resonance" for e in result.effects):
         return verdict
     # Only a fit that has not converged gets advice: the runs are stacked
     # for the hint only then (a long log costs a stack of its length).
     hinted = payload_hint(train) + ADVICE
-    return fit_verdict(rmse_all, floors, names, hinted, beyond, spread, thin, broke)
+    return fit_verdict(rmse_all, floors, names, hinted, *found)
 
 
 def _breakaways(
@@ -117,18 +123,14 @@ def _breakaways(
     validation: Sequence[MeasuredData],
 ) -> tuple:
     """The fitted model's breakaways per regime on `train` and rests on
-    `validation` (`model_breakaways`)."""
+    `validation` (`model_breakaways`), and each validation run's error
+    before the model first rests where it never breaks away on `train`
+    (`held_out_determined`)."""
     s = result.settings
-    return model_breakaways(
-        result.rate,
-        train,
-        validation,
-        s.side_source,
-        s.rest_rate_deg_s,
-        result.effects,
-        result.timing,
-        result.integration,
-    )
+    model = (s.side_source, s.rest_rate_deg_s, result.effects, result.timing, result.integration)
+    counts = model_breakaways(result.rate, train, validation, *model)
+    untrained = untrained_breakaways(*counts)
+    return counts, held_out_determined(result.rate, validation, untrained, *model)
 
 
 def payload_hint(runs: Sequence[MeasuredData]) -> str:

@@ -1,0 +1,119 @@
+"""The held-out error before the model first rests against a regime the
+training runs never break away in (`isp_twin.estimation.coverage.first_untrained_rest`,
+`isp_twin.identification.cost.held_out_determined`, the verdicts' JSON
+``held_out_before_untrained_rest``; docs/diagnosis.md "Stop 60").
+
+The rest is found on traces built by hand (every index known), the error on
+a reference run against the Eq. 9 residuals it must equal, and the verdict's
+JSON and sentence on given figures.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from truth_error import measured_runs, truth_parameter_set
+
+from isp_twin.estimation.coverage import (
+    MIN_REST_SAMPLES,
+    DeterminedPart,
+    RegimeBreakaways,
+    breakaway_sentence,
+    first_untrained_rest,
+)
+from isp_twin.estimation.verdict import fit_verdict
+from isp_twin.identification.cost import held_out_determined, residuals, simulate_data
+from isp_twin.identification.read_out import Timing
+from isp_twin.reference import design_experiment
+from isp_twin.vocabulary import REGIMES
+
+R_PLUS, R_MINUS, L_PLUS, L_MINUS = (REGIMES.index(n) for n in ("R+", "R-", "L+", "L-"))
+
+
+def _trace(pieces: list[tuple[int, float, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """(rate, regime) from (samples, rate, regime index) pieces, in order."""
+    rate = np.concatenate([np.full(n, w) for n, w, _ in pieces])
+    regime = np.concatenate([np.full(n, r) for n, _, r in pieces])
+    return rate, regime
+
+
+def test_the_first_rest_against_an_untrained_regime_is_found():
+    rate, regime = _trace(
+        [(10, 0.1, R_PLUS), (5, 0.0, R_MINUS), (10, -0.1, R_MINUS), (4, 0.0, L_MINUS), (7, 0.1, 0)]
+    )
+    assert first_untrained_rest(rate, regime, [L_MINUS]) == 25
+    assert first_untrained_rest(rate, regime, [R_MINUS, L_MINUS]) == 10
+    assert first_untrained_rest(rate, regime, [L_PLUS]) == rate.size
+
+
+def test_a_rest_counts_if_the_drive_pushes_that_way_at_any_of_its_samples():
+    rate, regime = _trace(
+        [(3, 0.1, R_PLUS), (2, 0.0, R_PLUS), (3, 0.0, L_MINUS), (3, -0.1, L_MINUS)]
+    )
+    assert first_untrained_rest(rate, regime, [L_MINUS]) == 3
+
+
+def test_a_zero_shorter_than_a_rest_is_a_reversal_not_a_rest():
+    short = MIN_REST_SAMPLES - 1
+    rate, regime = _trace([(5, 0.1, L_MINUS), (short, 0.0, L_MINUS), (5, -0.1, L_MINUS)])
+    assert first_untrained_rest(rate, regime, [L_MINUS]) == rate.size
+
+
+@pytest.fixture(scope="module")
+def reference_run():
+    """Reference clean axis 348's held-out run (random steps, rests), with
+    the truth's rate form recorded at the reference's read-out."""
+    exp = design_experiment(348, None, held_out="covered")
+    truth = exp.truth()
+    timing = Timing(0.0, truth["sensors"]["gyro_averaged"])
+    params = truth_parameter_set(truth, "inner_az", timing)
+    return measured_runs(exp)["heldout"], params.axis("inner_az").rate_params(), timing
+
+
+def test_no_untrained_regime_no_part(reference_run):
+    held, rate, timing = reference_run
+    assert held_out_determined(rate, [held], (), timing=timing) == ()
+
+
+def test_the_part_is_the_eq9_error_over_the_samples_before_the_first_rest(reference_run):
+    """With every regime untrained the part ends at the model's first rest;
+    its error is Eq. 9's residual over samples 1..first-1 (the same
+    simulation as the whole run's error)."""
+    held, rate, timing = reference_run
+    every = [RegimeBreakaways(name, 1) for name in REGIMES]
+    (part,) = held_out_determined(rate, [held], every, timing=timing)
+    sim = simulate_data(rate, held, timing=timing)
+    own = sim.omega_true  # the axis's own rate: the averaged reading is not 0 at a rest's start
+    assert part.run == "heldout" and part.of_samples == held.omega.size
+    assert part.samples == first_untrained_rest(own, sim.regime, range(len(REGIMES)))
+    assert 1 < part.samples < part.of_samples  # the run rests
+    e = residuals(rate, [held], timing=timing)
+    assert part.rmse == pytest.approx(np.sqrt(np.mean(e[: part.samples - 1] ** 2)), rel=1e-12)
+
+
+def test_the_verdict_states_the_part_beside_the_untrained_regime():
+    counts = (np.array([0, 3, 3, 0]), np.array([0, 1, 1, 2]))
+    floors = {"t": 1e-3, "h": 2e-3}
+    part = DeterminedPart("h", 1689, 6000, 2.2e-3)
+    args = ({"t": 1e-3, "h": 8e-3}, floors, ["h"], "Try more.")
+    off = fit_verdict(*args, breakaways=counts, determined=[part])
+    said = "Before its first such rest (sample 1689 of 6000) h reads 1.10 x the noise floor."
+    assert off.advice.startswith(breakaway_sentence(off.untrained) + said)
+    (got,) = off.to_json()["held_out_before_untrained_rest"]
+    assert got["samples"] == 1689 and got["of_samples"] == 6000
+    assert got["rmse_over_noise_floor"] == pytest.approx(1.1)
+    assert got["rmse_deg_s"] == pytest.approx(math.degrees(2.2e-3))
+    # Not said where the training runs are not fitted; still in the JSON.
+    untrained_off = fit_verdict(
+        {"t": 2e-3, "h": 8e-3}, floors, ["h"], "Try more.", breakaways=counts, determined=[part]
+    )
+    assert untrained_off.advice == "Try more."
+    assert untrained_off.to_json()["held_out_before_untrained_rest"][0]["samples"] == 1689
+
+
+def test_a_part_without_samples_has_no_figure():
+    part = DeterminedPart("h", 1, 6000, float("nan"))
+    assert part.sentence(1e-3) == ""
+    assert part.to_json(1e-3)["rmse_over_noise_floor"] is None
