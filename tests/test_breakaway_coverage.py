@@ -1,6 +1,8 @@
 """Breakaways from rest per regime: the training runs' against the held-out
 runs' rests (`isp_twin.estimation.coverage.breakaway_counts`, `rest_counts`,
-`untrained_breakaways`; docs/identification.md "Stop 54").
+`untrained_breakaways`; docs/identification.md "Stop 54"), and the first
+rest against such a regime (`first_untrained_rest`; docs/diagnosis.md
+"Stop 60").
 
 The counting is checked on traces built by hand (the regime of each sample
 given, so every count is known), the verdicts on them, and `identify` on the
@@ -20,6 +22,7 @@ from isp_twin.estimation.coverage import (
     MIN_REST_SAMPLES,
     breakaway_counts,
     breakaway_sentence,
+    first_untrained_rest,
     rest_counts,
     untrained_breakaways,
 )
@@ -104,6 +107,28 @@ def test_the_verdict_says_it_only_beside_an_error_above_the_noise():
     untrained_off = fit_verdict({"t": 2.0, "h": 4.0}, floors, ["h"], "Try more.", breakaways=counts)
     assert untrained_off.advice == "Try more."
     assert untrained_off.to_json()["held_out_breakaways_untrained"][0]["regime"] == "R+"
+
+
+def test_the_first_rest_against_an_untrained_regime_is_found():
+    rate, regime = _trace(
+        [(10, 0.1, R_PLUS), (5, 0.0, R_MINUS), (10, -0.1, R_MINUS), (4, 0.0, L_MINUS), (7, 0.1, 0)]
+    )
+    assert first_untrained_rest(rate, regime, [L_MINUS]) == 25
+    assert first_untrained_rest(rate, regime, [R_MINUS, L_MINUS]) == 10
+    assert first_untrained_rest(rate, regime, [L_PLUS]) == rate.size
+
+
+def test_a_rest_counts_if_the_drive_pushes_that_way_at_any_of_its_samples():
+    rate, regime = _trace(
+        [(3, 0.1, R_PLUS), (2, 0.0, R_PLUS), (3, 0.0, L_MINUS), (3, -0.1, L_MINUS)]
+    )
+    assert first_untrained_rest(rate, regime, [L_MINUS]) == 3
+
+
+def test_a_zero_shorter_than_a_rest_is_a_reversal_not_a_rest():
+    short = MIN_REST_SAMPLES - 1
+    rate, regime = _trace([(5, 0.1, L_MINUS), (short, 0.0, L_MINUS), (5, -0.1, L_MINUS)])
+    assert first_untrained_rest(rate, regime, [L_MINUS]) == rate.size
 
 
 @pytest.mark.parametrize("train_floors, said", [(1.0, True), (2.0, False)])

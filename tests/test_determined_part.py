@@ -3,9 +3,9 @@ training runs never break away in (`isp_twin.estimation.coverage.first_untrained
 `isp_twin.identification.cost.held_out_determined`, the verdicts' JSON
 ``held_out_before_untrained_rest``; docs/diagnosis.md "Stop 60").
 
-The rest is found on traces built by hand (every index known), the error on
-a reference run against the Eq. 9 residuals it must equal, and the verdict's
-JSON and sentence on given figures.
+The error on a reference run against the Eq. 9 residuals it must equal,
+and the verdict's JSON and sentence on given figures (the rest itself on
+traces built by hand: tests/test_breakaway_coverage.py).
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ import pytest
 from truth_error import measured_runs, truth_parameter_set
 
 from isp_twin.estimation.coverage import (
-    MIN_REST_SAMPLES,
     DeterminedPart,
     RegimeBreakaways,
     breakaway_sentence,
@@ -28,37 +27,6 @@ from isp_twin.identification.cost import held_out_determined, residuals, simulat
 from isp_twin.identification.read_out import Timing
 from isp_twin.reference import design_experiment
 from isp_twin.vocabulary import REGIMES
-
-R_PLUS, R_MINUS, L_PLUS, L_MINUS = (REGIMES.index(n) for n in ("R+", "R-", "L+", "L-"))
-
-
-def _trace(pieces: list[tuple[int, float, int]]) -> tuple[np.ndarray, np.ndarray]:
-    """(rate, regime) from (samples, rate, regime index) pieces, in order."""
-    rate = np.concatenate([np.full(n, w) for n, w, _ in pieces])
-    regime = np.concatenate([np.full(n, r) for n, _, r in pieces])
-    return rate, regime
-
-
-def test_the_first_rest_against_an_untrained_regime_is_found():
-    rate, regime = _trace(
-        [(10, 0.1, R_PLUS), (5, 0.0, R_MINUS), (10, -0.1, R_MINUS), (4, 0.0, L_MINUS), (7, 0.1, 0)]
-    )
-    assert first_untrained_rest(rate, regime, [L_MINUS]) == 25
-    assert first_untrained_rest(rate, regime, [R_MINUS, L_MINUS]) == 10
-    assert first_untrained_rest(rate, regime, [L_PLUS]) == rate.size
-
-
-def test_a_rest_counts_if_the_drive_pushes_that_way_at_any_of_its_samples():
-    rate, regime = _trace(
-        [(3, 0.1, R_PLUS), (2, 0.0, R_PLUS), (3, 0.0, L_MINUS), (3, -0.1, L_MINUS)]
-    )
-    assert first_untrained_rest(rate, regime, [L_MINUS]) == 3
-
-
-def test_a_zero_shorter_than_a_rest_is_a_reversal_not_a_rest():
-    short = MIN_REST_SAMPLES - 1
-    rate, regime = _trace([(5, 0.1, L_MINUS), (short, 0.0, L_MINUS), (5, -0.1, L_MINUS)])
-    assert first_untrained_rest(rate, regime, [L_MINUS]) == rate.size
 
 
 @pytest.fixture(scope="module")
