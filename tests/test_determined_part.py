@@ -84,4 +84,13 @@ def test_the_verdict_states_the_part_beside_the_untrained_regime():
 def test_a_part_without_samples_has_no_figure():
     part = DeterminedPart("h", 1, 6000, float("nan"))
     assert part.sentence(1e-3) == ""
-    assert part.to_json(1e-3)["rmse_over_noise_floor"] is None
+    counts = (np.array([0, 3, 3, 0]), np.array([0, 1, 1, 2]))
+    verdict = fit_verdict(
+        {"t": 1e-3, "h": 8e-3},
+        {"t": 1e-3, "h": 1e-3},
+        ["h"],
+        "Try more.",
+        breakaways=counts,
+        determined=[part],
+    )
+    assert verdict.to_json()["held_out_before_untrained_rest"][0]["rmse_over_noise_floor"] is None

@@ -30,7 +30,7 @@ from isp_twin.estimation.coverage import (
     thin_training,
     untrained_breakaways,
 )
-from isp_twin.estimation.verdict import CONVERGED_RATIO
+from isp_twin.estimation.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.identification.cost import held_out_determined, model_breakaways
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.side_angle import sides_as_read
@@ -205,7 +205,8 @@ def _with_breakaways(result: dict, diag, axis: str, side: str, train, holdout) -
     determined = held_out_determined(ax.rate_params(), holdout, untrained, side, **model)
     result["breakaways"] = breakaway_table(*counts)
     result["held_out_breakaways_untrained"] = [b.to_json() for b in untrained]
-    result["held_out_before_untrained_rest"] = [p.to_json(diag.noise_floor) for p in determined]
+    parts = [json_safe(p.to_json(diag.noise_floor)) for p in determined]
+    result["held_out_before_untrained_rest"] = parts
     said = breakaway_sentence(untrained) + "".join(p.sentence(diag.noise_floor) for p in determined)
     residual = diag.stack.flat(np.asarray(diag.residual_after))
     trained = np.sqrt(np.mean(residual**2)) <= CONVERGED_RATIO * diag.noise_floor

@@ -194,13 +194,15 @@ class DeterminedPart:
     rmse: float
 
     def to_json(self, noise_floor: float) -> dict:
+        """Its JSON record (nan and inf as they are: the verdicts write it
+        through `isp_twin.estimation.verdict.json_safe`)."""
         ratio = self.rmse / noise_floor if noise_floor > 0 else math.inf
         return {
             "run": self.run,
             "samples": self.samples,
             "of_samples": self.of_samples,
-            "rmse_deg_s": _finite(self.rmse / DEG),
-            "rmse_over_noise_floor": _finite(ratio),
+            "rmse_deg_s": self.rmse / DEG,
+            "rmse_over_noise_floor": ratio,
         }
 
     def sentence(self, noise_floor: float) -> str:
@@ -211,10 +213,6 @@ class DeterminedPart:
             f"Before its first such rest (sample {self.samples} of {self.of_samples}) "
             f"{self.run} reads {self.rmse / noise_floor:.2f} x the noise floor. "
         )
-
-
-def _finite(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 def _pooled(runs) -> tuple[np.ndarray, np.ndarray]:
@@ -375,7 +373,8 @@ def first_untrained_rest(rate: np.ndarray, regime: np.ndarray, untrained: Sequen
             breaks away on the training runs.
     """
     regime = np.asarray(regime)
-    wanted = np.isin(np.arange(len(REGIMES)), list(untrained))
+    wanted = np.zeros(len(REGIMES), dtype=bool)
+    wanted[list(untrained)] = True
     for a, b in zip(*_rest_episodes(rate)):
         if wanted[regime[a:b]].any():
             return int(a)

@@ -236,7 +236,7 @@ class FitVerdict:
             "held_out_breakaways_untrained": [b.to_json() for b in self.untrained],
             "breakaways": {k: dict(v) for k, v in self.breakaways.items()},
             "held_out_before_untrained_rest": [
-                p.to_json(self.noise_floor[p.run]) for p in self.determined
+                json_safe(p.to_json(self.noise_floor[p.run])) for p in self.determined
             ],
         }
 
