@@ -31,6 +31,7 @@ __all__ = [
     "CandidateFit",
     "fit_candidate",
     "fit_candidates",
+    "guesses_on",
     "holdout_residual",
     "holdout_residuals",
     "levels_taken",
@@ -258,6 +259,13 @@ def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> tuple[dict,
         starts[n] = [*first, *more]
         rate_starts[n] = np.vstack([np.tile(x_rate, (len(first), 1)), lowered])
     return starts, rate_starts
+
+
+def guesses_on(stack: RunStack, fit: CandidateFit, name: str) -> list[dict[str, float]]:
+    """Effect `name`'s `guesses` on `fit`'s training residual, clipped to its bounds."""
+    one = predict_one(stack, fit.rate_vector, fit.effects())
+    cls = effect_class(name)
+    return [_clipped(cls, g) for g in cls.guesses(residual_context(stack, one, fit.rate_vector))]
 
 
 def _clipped(cls, guess: dict) -> dict:
