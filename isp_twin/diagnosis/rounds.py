@@ -124,10 +124,13 @@ TORQUE_GLOBAL: tuple[str, ...] = ("cogging", "unbalance", "cable_spring", "lugre
 #: held at the joint estimate reached 1.3 noise floors, 3.9 at its own fit.
 OWN_FIT_TOO: tuple[str, ...] = ("lugre",)
 #: Of those, the ones whose global step also holds each of the effect's own
-#: `guesses` on the base's residual (the cogging periodogram's peaks): a
-#: period the local refit left cannot be reached by refining it
-#: (`_torque_global_stage`).
-GUESSES_HELD: tuple[str, ...] = ("cogging",)
+#: `guesses` on the base's residual (the cogging periodogram's peaks), with
+#: the parameter those search: a period the local refit left cannot be
+#: reached by refining it (`_torque_global_stage`). A guess within
+#: `SEARCHED_MATCH` of the local refit's value is the basin the refit's own
+#: global step already takes, and is not held again.
+GUESSES_HELD: dict[str, str] = {"cogging": "period_rad"}
+SEARCHED_MATCH = 0.01
 #: The payload resonance, and the payload fractions J2/J its mode is held at
 #: in `identify`'s global step when it leads the training BIC but is not at
 #: the noise (`_payload_stage`). The reference draws J2/J from 5 % to 30 %.
@@ -461,8 +464,9 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     at the data's read-out (docs/diagnosis.md "Stop 56").
 
     For `GUESSES_HELD` (cogging) the step is also taken from each of the
-    effect's guesses on the base's residual (its periodogram's peaks), the
-    lowest training cost kept: the local refit starts from one guess only,
+    effect's guesses on the base's residual (its periodogram's peaks) at
+    another period than the local refit's (`_other_basins`), the lowest
+    training cost kept: the local refit starts from one guess only,
     the one that simulates best on the base's friction levels, and there a
     strong ripple had distorted those levels so much that the right period
     simulated worse than a wrong one. On reference cogging seed 383 (a
@@ -482,13 +486,23 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     if top not in starts or top in OWN_FIT_TOO:
         firsts.append(_refit_globally(data, st.fits[top]))
     if top in GUESSES_HELD:
-        firsts += [
-            _refit_globally(data, st.fits[top], g) for g in guesses_on(data.train, st.base, top)
-        ]
+        firsts += [_refit_globally(data, st.fits[top], g) for g in _other_basins(data, st, top)]
     # The better one refitted again (`_global_cycles`).
     g = _global_cycles(data, min(firsts, key=lambda f: f.sse))
     verdicts, kept = _kept_if_better(data, st, verdicts, {top: g})
     return _offset_alternative(data, st, verdicts, top) if kept else verdicts
+
+
+def _other_basins(data, st, name: str) -> list[dict[str, float]]:
+    """`name`'s guesses on the base's residual (`guesses_on`) whose searched
+    parameter (`GUESSES_HELD`) lies further than `SEARCHED_MATCH` from its
+    local refit's."""
+    key, own = GUESSES_HELD[name], st.fits[name].params
+    return [
+        g
+        for g in guesses_on(data.train, st.base, name)
+        if abs(g[key] / own[key] - 1.0) > SEARCHED_MATCH
+    ]
 
 
 def _offset_alternative(data, st, verdicts, top: str) -> list[Verdict]:
