@@ -22,7 +22,6 @@ from isp_twin.diagnosis.candidates import _guessed_starts, fit_candidates
 from isp_twin.diagnosis.prepared_runs import checked_inputs
 from isp_twin.diagnosis.residual import residual_context
 from isp_twin.diagnosis.search import _prepared
-from isp_twin.estimation.simulation_error import predict_one
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import load_parameters
@@ -48,7 +47,7 @@ def case():
 
 def test_every_periodogram_peak_is_a_start_at_the_current_rates(case):
     _, train, x = case
-    context = residual_context(train, predict_one(train, x), x)
+    context = residual_context(train, x)
     classes = {"cogging": effect_class("cogging", "candidate effect")}
     starts, rate_starts = _guessed_starts(train, x, classes, ["cogging"], (), context)
     peaks = classes["cogging"].guesses(context)

@@ -237,7 +237,6 @@ def test_a_guess_lowers_the_friction_levels_by_what_it_brings_beyond_the_deficit
 @pytest.mark.parametrize("missing", [2.0, 6.0])
 def test_the_residual_shows_a_coulomb_level_the_model_lacks_as_its_friction_deficit(rate, missing):
     from isp_twin.diagnosis.residual import residual_context
-    from isp_twin.estimation.simulation_error import predict_one
     from isp_twin.model.parameters import RATE_LAYOUT, RateParams
 
     # The runs' axis has `missing` rad/s^2 more sliding friction in every
@@ -254,7 +253,7 @@ def test_the_residual_shows_a_coulomb_level_the_model_lacks_as_its_friction_defi
         for i in range(2)
     ]
     st = stack_runs(runs, integration=EQ6)
-    ctx = residual_context(st, predict_one(st, x), x)
+    ctx = residual_context(st, x)
     assert ctx.coulomb_rad_s2 == pytest.approx(
         float(np.median(RATE_LAYOUT.column(x, "coulomb"))) / DT
     )
@@ -262,5 +261,5 @@ def test_the_residual_shows_a_coulomb_level_the_model_lacks_as_its_friction_defi
     # The model's own runs show none.
     same = [make_run("s", rate, excitation(rng, 2000, DT), DT, rng)]
     st0 = stack_runs(same, integration=EQ6)
-    ctx0 = residual_context(st0, predict_one(st0, x), x)
+    ctx0 = residual_context(st0, x)
     assert abs(ctx0.friction_deficit_rad_s2) < 0.1 * missing

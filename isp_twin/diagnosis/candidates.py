@@ -21,7 +21,7 @@ from isp_twin.diagnosis.residual import ResidualContext, residual_context
 from isp_twin.estimation.information import bic
 from isp_twin.estimation.intervals import confidence_intervals
 from isp_twin.estimation.least_squares import FitResult, FitStatus, lm_steps, solve_many
-from isp_twin.estimation.simulation_error import RunStack, predict, predict_one, residuals_many
+from isp_twin.estimation.simulation_error import RunStack, predict, residuals_many
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec
 from isp_twin.model.rate_layout import CandidateLayout
@@ -229,8 +229,7 @@ def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> tuple[dict,
     levels lowered by the sliding friction it brings (`_friction_lowered`);
     several starts come as a list, their rate starts as rows."""
     if context is None:
-        one = predict_one(stack, x_rate, fixed)
-        context = residual_context(stack, one, x_rate)
+        context = residual_context(stack, x_rate, fixed)
     guesses = {}
     for n in need:
         guesses[n] = [_clipped(classes[n], g) for g in classes[n].guesses(context)]
@@ -263,9 +262,9 @@ def _guessed_starts(stack, x_rate, classes, need, fixed, context) -> tuple[dict,
 
 def guesses_on(stack: RunStack, fit: CandidateFit, name: str) -> list[dict[str, float]]:
     """Effect `name`'s `guesses` on `fit`'s training residual, clipped to its bounds."""
-    one = predict_one(stack, fit.rate_vector, fit.effects())
     cls = effect_class(name)
-    return [_clipped(cls, g) for g in cls.guesses(residual_context(stack, one, fit.rate_vector))]
+    context = residual_context(stack, fit.rate_vector, fit.effects())
+    return [_clipped(cls, g) for g in cls.guesses(context)]
 
 
 def _clipped(cls, guess: dict) -> dict:

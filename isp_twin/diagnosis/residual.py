@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from isp_twin.estimation.simulation_error import predict_one
 from isp_twin.estimation.verdict import noise_floor_of
 from isp_twin.model.parameters import RATE_LAYOUT
 
@@ -88,14 +89,15 @@ class ResidualContext:
     deflection_lines: np.ndarray | None = None
 
 
-def residual_context(stack, resp, rate_vector: np.ndarray) -> ResidualContext:
+def residual_context(stack, rate_vector: np.ndarray, fixed=()) -> ResidualContext:
     """Context of one model's residual on a `RunStack`.
 
     Args:
         stack: the runs.
-        resp: `AxisResponse` of that model, arrays (R, N).
         rate_vector: the model's rate-form parameters (`RATE_LAYOUT.size`,).
+        fixed: its effects (`EffectSpec`).
     """
+    resp = predict_one(stack, rate_vector, fixed)
     pole = RATE_LAYOUT.column(rate_vector, "pole")
     levels = RATE_LAYOUT.column(rate_vector, "coulomb")
     coulomb = float(np.median(levels)) / stack.dt

@@ -26,7 +26,7 @@ from isp_twin.diagnosis.selection import MIN_GAIN, Verdict, judge, select
 from isp_twin.diagnosis.trade import placed_along_trade
 from isp_twin.errors import ParameterError
 from isp_twin.estimation.information import parameter_penalty
-from isp_twin.estimation.simulation_error import RunStack, predict_one, residuals, residuals_many
+from isp_twin.estimation.simulation_error import RunStack, residuals, residuals_many
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.equation_error import (
     JOINT_FORMS,
@@ -261,8 +261,7 @@ def diagnosis_round(
     """One round: candidates refitted -> held-out residuals -> verdicts ->
     joint restarts (round 1) -> re-opened rates -> acceptance."""
     train = data.train
-    resp = predict_one(train, x_current, fixed)
-    context = residual_context(train, resp, x_current)
+    context = residual_context(train, x_current, fixed)
     names = remaining + ([BASELINE] if current is None else [])
     fits = fit_candidates(train, x_current, names, fixed, context=context, max_iter=data.max_iter)
     base = fits.pop(BASELINE) if current is None else _as_round_base(current)
