@@ -21,18 +21,20 @@ from isp_twin.diagnosis import rounds
 from isp_twin.identification.read_out import Timing
 
 
-def _stage(monkeypatch, top: str, with_joint: bool, sse: dict):
+def _stage(monkeypatch, top: str, with_joint: bool, sse: dict, peaks=()):
     """`_torque_global_stage` on a leader 10 noise floors out, its refits
     recorded as (held parameters, free_read_out) and given the training sse
-    of `sse` by hold ("joint" or "own"); the cycles and the offset left out."""
+    of `sse` by hold ("joint", "own", or a peak's "key"); the effect's other
+    basins (`_other_basins`) are `peaks`; the cycles and the offset left out."""
     calls = []
 
     def refit(data, fit, held=None, free_read_out=False):
-        key = "own" if held is None else "joint"
+        key = "own" if held is None else held.get("key", "joint")
         calls.append((key, free_read_out))
         return fit_double(fit.name, {"hold": key}, sse[key])
 
     monkeypatch.setattr(rounds, "_refit_globally", refit)
+    monkeypatch.setattr(rounds, "_other_basins", lambda data, st, name: [dict(g) for g in peaks])
     monkeypatch.setattr(rounds, "_global_cycles", lambda data, g: g)
     monkeypatch.setattr(rounds, "_offset_alternative", lambda data, st, v, top: v)
     st = RoundStateDouble({top: fit_double(top, {"own": 1.0}, 100.0)}, floor=1.0)
@@ -89,3 +91,25 @@ def test_refit_globally_passes_no_timing_only_when_the_read_out_is_free(monkeypa
     assert seen["timing"] == want
     assert seen["effects"] == [("lugre", held)]
     assert seen["polish"] == ("the data's stack", ["lugre"], {"lugre": held})
+
+
+# Stop 61 (`rounds.GUESSES_HELD`; docs/diagnosis.md "Stop 61"): a leading
+# cogging's global step is also held at each periodogram peak away from its
+# local refit's period; the lowest training cost is kept.
+def test_a_leading_cogging_is_also_held_at_its_other_periodogram_peaks(monkeypatch):
+    peaks = [{"key": "peak1"}, {"key": "peak2"}]
+    sse = {"own": 90.0, "peak1": 3.0, "peak2": 50.0}
+    calls, st, _ = _stage(monkeypatch, "cogging", False, sse, peaks)
+    assert calls == [("own", False), ("peak1", False), ("peak2", False)]
+    assert st.updated["cogging"].params == {"hold": "peak1"}
+    # The other torque effects are not held at their guesses.
+    calls, _, _ = _stage(monkeypatch, "unbalance", False, sse, peaks)
+    assert calls == [("own", False)]
+
+
+def test_a_peak_within_one_percent_of_the_refits_period_is_not_held_again(monkeypatch):
+    got = [{"period_rad": p} for p in (0.0388, 0.02165, 0.0341, 0.0218)]
+    monkeypatch.setattr(rounds, "guesses_on", lambda train, base, name: got)
+    st = RoundStateDouble({"cogging": fit_double("cogging", {"period_rad": 0.0216})})
+    others = rounds._other_basins(SimpleNamespace(train=None), st, "cogging")
+    assert [g["period_rad"] for g in others] == [0.0388, 0.0341]
