@@ -465,15 +465,16 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     For `GUESSES_HELD` (cogging) the step is also taken from each of the
     effect's guesses on the base's residual (its periodogram's peaks) at
     another period than the local refit's (`_other_basins`), the lowest
-    training cost kept: the local refit starts from one guess only,
-    the one that simulates best on the base's friction levels, and there a
-    strong ripple had distorted those levels so much that the right period
-    simulated worse than a wrong one. On reference cogging seed 383 (a
-    ripple of 20 % of the static friction; the base at 70 noise floors on
-    training) the local refit ended at period 0.0216 rad, and the global
-    step held there did not move the training cost; held at the
-    periodogram's first peak (0.0388 rad, the truth's) it fell 400-fold,
-    the ripple within 2 % (docs/diagnosis.md "Stop 61").
+    training cost kept. The local refit refines every peak
+    (`Effect.every_guess_refined`) but from the base's rate parameters,
+    whose basin it cannot leave; where a strong ripple has bent those, a
+    wrong peak can end lowest there, and the global step, the one that
+    moves the rates, was held at that refit alone. On reference cogging
+    seed 383 (a ripple of 20 % of the static friction; the base at 70
+    noise floors on training) the local refit ended at period 0.0216 rad,
+    and the global step held there did not move the training cost; held at
+    the periodogram's first peak (0.0388 rad, the truth's) it fell
+    400-fold, the ripple within 2 % (docs/diagnosis.md "Stop 61").
     """
     if rms_of(st.held_of[top]) <= CONVERGED_RATIO * st.floor:
         return verdicts
