@@ -14,6 +14,7 @@ from isp_twin.diagnosis.result import Diagnosis
 from isp_twin.diagnosis.search import diagnose
 from isp_twin.identification.measured import MeasuredData, save_measured
 from isp_twin.model.parameters import load_parameters
+from isp_twin.reference import design_experiment
 
 
 def identified_then_diagnosed(
@@ -36,6 +37,19 @@ def identified_then_diagnosed(
         candidates=candidates,
         max_rounds=max_rounds,
     )
+
+
+def reference_identified_then_diagnosed(
+    folder: Path, seed: int, effect: str | None, candidates, held_out: str = "free"
+):
+    """Reference axis `seed` with `effect` (its `held_out` design):
+    `identified_then_diagnosed` on its runs; (the experiment, the diagnosis)."""
+    exp = design_experiment(seed, effect, held_out=held_out)
+    runs = {
+        n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, exp.excitations[n].dt)
+        for n, r in exp.runs.items()
+    }
+    return exp, identified_then_diagnosed(folder, runs, candidates)
 
 
 def identified_reference(folder: Path, seed: int, held_out: str | None = None) -> tuple[dict, dict]:

@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 import pytest
-from identified_runs import identified_then_diagnosed
+from identified_runs import reference_identified_then_diagnosed
 
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.cost import simulate_data
@@ -133,18 +133,9 @@ def test_the_exact_hold_brings_a_fast_axis_strength_closer_to_the_truth(name):
     assert err[1] < err[0]
 
 
-def _identified_then_diagnosed(tmp_path, seed: int, effect: str, candidates, held_out="free"):
-    """A reference axis (its `held_out` design): `isp-twin identify` on its
-    two training runs as a user runs it, then `diagnose` (one round,
-    `candidates`) with the held-out run; (the experiment, the diagnosis)."""
-    exp = design_experiment(seed, effect, held_out=held_out)
-    runs = {n: MeasuredData(n, r.t, r.u, r.omega, r.theta, None, 1e-3) for n, r in exp.runs.items()}
-    return exp, identified_then_diagnosed(tmp_path, runs, candidates)
-
-
 def test_an_unbalance_is_adopted_at_the_noise_with_its_parameters(tmp_path):
     torques = ("cogging", "unbalance", "cable_spring")
-    exp, d = _identified_then_diagnosed(tmp_path, 1000, "unbalance", torques)
+    exp, d = reference_identified_then_diagnosed(tmp_path, 1000, "unbalance", torques)
     true = exp.truth()["effects"][0]["params"]
     assert d.selected_effect == "unbalance"
     assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
@@ -156,50 +147,46 @@ def test_an_unbalance_is_adopted_at_the_noise_with_its_parameters(tmp_path):
 # The alike pair: over a small travel an unbalance is a spring (sin y ~ y).
 # Cable spring seed 1 and unbalance seed 3 of the benchmark
 # (`benchmarks/identify_reference.py`) answered the other one of the pair at
-# stop 20 and shaped the alike restart (`rounds._alike_stage`); cable spring
-# seed 7 was left tentative at the base's read-out and shaped the read-out
-# round (`search._tentative_read_out`): regression tests, not their
-# validation (docs/diagnosis.md "Stop 21").
-@pytest.mark.parametrize(
-    ("effect", "seed"), [("cable_spring", 1), ("unbalance", 3), ("cable_spring", 7)]
-)
-def test_the_alike_pair_answers_the_effect_in_the_data(tmp_path, effect, seed):
-    _, d = _identified_then_diagnosed(tmp_path, seed, effect, ("cable_spring", "unbalance"))
+# stop 20 and shaped the alike restart (`rounds._alike_stage`): regression
+# tests, not their validation (docs/diagnosis.md "Stop 21"). Unbalance seed 3
+# and cable spring seed 7 (the read-out round) are pinned in
+# `benchmarks/pinned_axes/`.
+def alike_pair_answered(tmp_path, effect: str, seed: int) -> None:
+    """With the pair as the candidates, the effect in the data is adopted at the noise."""
+    _, d = reference_identified_then_diagnosed(
+        tmp_path, seed, effect, ("cable_spring", "unbalance")
+    )
     assert d.selected_effect == effect
     assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
 
 
+def test_the_alike_pair_answers_the_effect_in_the_data(tmp_path):
+    alike_pair_answered(tmp_path, "cable_spring", 1)
+
+
 # The other gyro read-out of a tentative effect (`search._other_gyro_read_out`),
-# regression tests on the benchmark axes that shaped it, not its validation:
-# - unbalance seed 6 (docs/diagnosis.md "Stop 22"): `identify` with the
-#   unbalance held at its fit kept the base's point-sampled read-out (3.2
-#   noise floors held out); its refit at the averaged one (the reference gyro
-#   averages) reaches the noise. A long period cogging is a candidate as at
-#   the benchmark: it fits better than the unbalance at the base's read-out
-#   and is overruled as less than one period over the travel;
-# - cable spring seed 22, a 14 ms axis (docs/diagnosis.md "Stop 27"), shaped
-#   the second refit and the lower `FLIP_GAIN`: the spring refitted from the
-#   point-sampled rates at the averaged read-out fitted no better, where the
-#   rates `identify` finds there with the spring held take the stiffness from
-#   3 % short to the truth's and the training cost 2.9 % lower.
-@pytest.mark.parametrize(
-    ("effect", "seed", "candidates", "strength", "rel"),
-    [
-        ("unbalance", 6, ("cogging", "unbalance", "cable_spring"), "amplitude_rad_s2", 0.1),
-        ("cable_spring", 22, ("cable_spring",), "stiffness_1_s2", 0.01),
-    ],
-    ids=["unbalance-6", "cable_spring-22"],
-)
-def test_a_tentative_effect_is_judged_at_the_other_gyro_read_out(
-    tmp_path, effect, seed, candidates, strength, rel
-):
-    exp, d = _identified_then_diagnosed(tmp_path, seed, effect, candidates)
+# a regression test on the benchmark axis that shaped it, not its validation:
+# unbalance seed 6 (docs/diagnosis.md "Stop 22"): `identify` with the
+# unbalance held at its fit kept the base's point-sampled read-out (3.2
+# noise floors held out); its refit at the averaged one (the reference gyro
+# averages) reaches the noise. A long period cogging is a candidate as at
+# the benchmark: it fits better than the unbalance at the base's read-out
+# and is overruled as less than one period over the travel. Cable spring
+# seed 22 (the second refit, `FLIP_GAIN`) is pinned in `benchmarks/pinned_axes/`.
+def judged_at_the_other_read_out(tmp_path, effect, seed, candidates, strength, rel) -> None:
+    """Adopted at the noise at the averaged gyro read-out, `strength` within `rel`."""
+    exp, d = reference_identified_then_diagnosed(tmp_path, seed, effect, candidates)
     true = exp.truth()["effects"][0]["params"]
     assert d.selected_effect == effect
     assert d.timing.gyro_average
     assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
     got = dict(d.params_out.axes[d.axis].effects[0].params)
     assert got[strength] == pytest.approx(true[strength], rel=rel)
+
+
+def test_a_tentative_effect_is_judged_at_the_other_gyro_read_out(tmp_path):
+    torques = ("cogging", "unbalance", "cable_spring")
+    judged_at_the_other_read_out(tmp_path, "unbalance", 6, torques, "amplitude_rad_s2", 0.1)
 
 
 # LuGre seeds 1 and 2 of the benchmark shaped the LuGre search of stop 23
@@ -213,7 +200,7 @@ def test_a_tentative_effect_is_judged_at_the_other_gyro_read_out(
 # test, not their validation. Its pre-sliding distance ends 20 % off: the
 # bristle force only.
 def test_a_lugre_axis_is_adopted_at_the_noise(tmp_path):
-    exp, d = _identified_then_diagnosed(
+    exp, d = reference_identified_then_diagnosed(
         tmp_path, 1, "lugre", ("lugre", "cable_spring", "input_delay")
     )
     true = exp.truth()["effects"][0]["params"]
@@ -232,7 +219,9 @@ def test_a_lugre_axis_is_adopted_at_the_noise(tmp_path):
 # (docs/diagnosis.md "Stop 61").
 def test_a_strong_cogging_is_found_from_its_periodogram_peaks(tmp_path):
     torques = ("cogging", "unbalance", "cable_spring")
-    exp, d = _identified_then_diagnosed(tmp_path, 383, "cogging", torques, held_out="covered")
+    exp, d = reference_identified_then_diagnosed(
+        tmp_path, 383, "cogging", torques, held_out="covered"
+    )
     true = exp.truth()["effects"][0]["params"]
     assert d.selected_effect == "cogging"
     assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor

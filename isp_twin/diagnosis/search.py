@@ -419,7 +419,7 @@ def _others_there(there: DiagnosisData, rnd, tentative) -> list:
     The read-out round judges one effect beside its rivals. Where the first
     rounds left two effects tentative, that effect alone can fit the
     training runs at the noise though the data hold both: the unbalance and
-    gyro bias of `tests/test_second_round.py`. Until stop 51 the read-out
+    gyro bias of `benchmarks/pinned_axes/test_second_round.py`. Until stop 51 the read-out
     round's effect was therefore adopted by `_explains_training` only
     where a single effect was tentative, and reference LuGre seed 337 (the
     LuGre and a 7-digit dead zone tentative; the LuGre alone at 1.08 noise
