@@ -19,6 +19,14 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import pytest
+
 TESTS = Path(__file__).resolve().parents[2] / "tests"
 if str(TESTS) not in sys.path:
     sys.path.insert(0, str(TESTS))
+
+# The suite's modules whose checks the pinned tests call: their asserts
+# explain a failure here as they do in the suite.
+pytest.register_assert_rewrite(
+    "identified_runs", "test_payload_side", "test_torque_effects_reference", "truth_error"
+)
