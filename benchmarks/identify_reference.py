@@ -356,17 +356,26 @@ def one_axis(
 
 
 def offset_equivalence(truth: dict, diag: dict, after_over_noise: float) -> dict:
-    """The second scoring of a torque offset (docs/diagnosis.md, "Sensor bias and torque offset").
+    """The second scoring of a torque offset (docs/diagnosis.md, "Sensor bias
+    and torque offset", "Stop 63").
 
     A constant torque is exactly a shift of the per-direction friction levels
     (+ regimes down, - regimes up, by the offset) as long as no level has to
     go negative: then ``none`` with the implied offset stated is the honest
     answer. From the truth: whether this axis is such a case (every shifted
-    Coulomb and static level > 0) and the offset the true levels would imply,
-    ``T0 + (Tc- - Tc+)/2`` per side (the bearings' own asymmetry included).
-    Scored right-equivalent: answer ``none``, the axis equivalent, held-out
-    after within the bound, the statement consistent on both sides; its
-    value within 10 % of |T0| of the truth's implied one.
+    Coulomb and static level > 0) and the offset the true levels imply on
+    each angle side, ``T0 + (Tc- - Tc+)/2`` (the bearings' own asymmetry on
+    that side included; the reference draws each regime's levels apart, so
+    the two sides differ). Scored right-equivalent: answer ``none``, the axis
+    equivalent, held-out after within the bound, and the offset stated on
+    each side within 10 % of |T0| of the truth's on that side.
+
+    Until stop 63 the two sides' statements also had to agree within their
+    intervals (``consistent``), and their mean to be within 10 % of |T0| of
+    the truth's mean: the true sides themselves disagree by the bearings'
+    asymmetry, far beyond those intervals, so an exact answer failed it
+    (reference torque offset seed 401: stated -2.308 and -2.172 rad/s^2, the
+    truth's -2.310 and -2.176).
     """
     dt = truth["sample_time_s"]
     accel = truth["effects"][0]["params"]["accel_rad_s2"]
@@ -378,21 +387,25 @@ def offset_equivalence(truth: dict, diag: dict, after_over_noise: float) -> dict
         for r in regimes
         for f in ("coulomb", "static")
     ]
-    implied_true = accel + 0.25 * sum(
-        sign[r] * regimes[r]["coulomb"] * per_accel[r] for r in regimes
-    )
-    out = {"offset_equivalent_axis": bool(min(shifted) > 0.0), "offset_implied_true": implied_true}
+    levels = {r: regimes[r]["coulomb"] * per_accel[r] for r in regimes}
+    sides_true = [accel + 0.5 * (levels[s + "-"] - levels[s + "+"]) for s in ("R", "L")]
+    out = {
+        "offset_equivalent_axis": bool(min(shifted) > 0.0),
+        "offset_implied_true": 0.5 * sum(sides_true),
+        "offset_sides_true": sides_true,
+    }
     stated = diag.get("equivalent_torque_offset")
     if diag["selected_effect"] == "none" and stated:
+        sides = [stated["right_side_rad_s2"], stated["left_side_rad_s2"]]
         out["offset_implied_fitted"] = stated["accel_rad_s2"]
+        out["offset_sides_fitted"] = sides
+        out["offset_implied_ok"] = all(
+            v is not None and abs(v - t) <= 0.1 * abs(accel) for v, t in zip(sides, sides_true)
+        )
         out["offset_right_equivalent"] = bool(
             out["offset_equivalent_axis"]
             and after_over_noise <= bound("torque_offset")
-            and stated["consistent"]
-        )
-        out["offset_implied_ok"] = bool(
-            stated["accel_rad_s2"] is not None
-            and abs(stated["accel_rad_s2"] - implied_true) <= 0.1 * abs(accel)
+            and out["offset_implied_ok"]
         )
     return out
 
@@ -405,15 +418,12 @@ def offset_lines(records: list[dict]) -> list[str]:
     eq_axes = sum(1 for r in records if r.get("offset_equivalent_axis"))
     strict = sum(1 for r in records if r.get("diagnose_answer") == "right")
     equiv = sum(1 for r in records if r.get("offset_right_equivalent"))
-    implied_ok = sum(
-        1 for r in records if r.get("offset_right_equivalent") and r.get("offset_implied_ok")
-    )
     return [
         f"torque_offset, scored as before: right {strict}/{n}",
         f"torque_offset, an equivalent 'none' counted as right (docs/diagnosis.md, "
-        f"'Sensor bias and torque offset'): right {strict + equiv}/{n} ({equiv} equivalent, implied "
-        f"offset within 10 % on {implied_ok}); axes where the equivalence holds (truth): "
-        f"{eq_axes}/{n}",
+        f"'Sensor bias and torque offset', 'Stop 63'): right {strict + equiv}/{n} ({equiv} "
+        f"equivalent: within the bound, the offset each side's levels imply within 10 % of "
+        f"|T0|); axes where the equivalence holds (truth): {eq_axes}/{n}",
     ]
 
 
