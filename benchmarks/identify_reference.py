@@ -382,13 +382,11 @@ def offset_equivalence(truth: dict, diag: dict, after_over_noise: float) -> dict
     regimes = truth["rate_form"]["regimes"]
     sign = {"R+": -1.0, "R-": 1.0, "L+": -1.0, "L-": 1.0}
     per_accel = {r: -math.log(v["pole"]) / ((1.0 - v["pole"]) * dt) for r, v in regimes.items()}
-    shifted = [
-        regimes[r][f] * per_accel[r] + sign[r] * accel
-        for r in regimes
-        for f in ("coulomb", "static")
-    ]
-    levels = {r: regimes[r]["coulomb"] * per_accel[r] for r in regimes}
-    sides_true = [accel + 0.5 * (levels[s + "-"] - levels[s + "+"]) for s in ("R", "L")]
+    # Each regime's Coulomb and static level as torque / J [rad/s^2].
+    level = {(r, f): regimes[r][f] * per_accel[r] for r in regimes for f in ("coulomb", "static")}
+    shifted = [v + sign[r] * accel for (r, _), v in level.items()]
+    coulomb = {r: level[r, "coulomb"] for r in regimes}
+    sides_true = [accel + 0.5 * (coulomb[s + "-"] - coulomb[s + "+"]) for s in ("R", "L")]
     out = {
         "offset_equivalent_axis": bool(min(shifted) > 0.0),
         "offset_implied_true": 0.5 * sum(sides_true),
