@@ -18,6 +18,7 @@ from round_state_double import fit_double
 
 from isp_twin.diagnosis import rounds
 from isp_twin.identification.read_out import Timing
+from isp_twin.model.parameters import EffectSpec
 
 
 @pytest.mark.parametrize("free", [True, False])
@@ -60,10 +61,12 @@ def test_identify_held_hands_the_generations_to_identify_with_diagnose_settings(
         train=SimpleNamespace(integration=integration),
         runs=SimpleNamespace(raw=["run"]),
         ax=_Axis(),
+        identified={},
     )
-    assert rounds.identify_held(data, ["held"], Timing(0.5, True), generations=0) == "result"
+    held = EffectSpec("cogging", {"amplitude_rad_s2": 1.0})
+    assert rounds.identify_held(data, [held], Timing(0.5, True), generations=0) == "result"
     s = seen["settings"]
     assert (s.generations, s.timing, s.seed) == (0, Timing(0.5, True), 3)
     assert s.regime_spread is None and not s.restart_at_noise
     assert s.integration is integration
-    assert seen["ax"] == _Axis(effects=("held",))
+    assert seen["ax"] == _Axis(effects=(held,))

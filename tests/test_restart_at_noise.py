@@ -89,6 +89,7 @@ def test_diagnose_fits_without_the_restart(monkeypatch):
         train=SimpleNamespace(integration=None),
         runs=SimpleNamespace(raw=[]),
         ax=SimpleNamespace(),
+        identified={},
     )
     monkeypatch.setattr(rounds, "replace", lambda ax, effects: ax)
     rounds.identify_held(data, (), timing=None, generations=0)

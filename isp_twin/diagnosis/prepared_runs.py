@@ -6,7 +6,7 @@ simulation error (`stacked`, `Data`)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -170,6 +170,8 @@ class DiagnosisData:
         seed: seed of `identify`'s global search.
         max_iter: Levenberg-Marquardt iterations per fit.
         cv_iter: iterations per cross-validation fold.
+        identified: `identify`'s results on these runs, by what they held
+            (`rounds.identify_held`); each `replace` of the data starts empty.
     """
 
     runs: DiagnosisRuns
@@ -183,6 +185,7 @@ class DiagnosisData:
     seed: int
     max_iter: int
     cv_iter: int
+    identified: dict = field(default_factory=dict, init=False, compare=False, repr=False)
 
     @property
     def fixed_side(self) -> int | None:

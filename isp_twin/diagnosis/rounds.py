@@ -921,15 +921,30 @@ def identify_held(data: DiagnosisData, effects, timing, **options) -> Identifica
     it; docs/diagnosis.md "Stop 19") and without its restart at the noise
     (`IdSettings.restart_at_noise`; input delay seed 0 right at 1.32 noise
     floors -> tentative at 1.75 with it: the delay polished from the
-    restarted rates ended higher on training; docs/diagnosis.md "Stop 26")."""
-    settings = IdSettings(
-        side_source=data.side_source,
-        seed=data.seed,
-        timing=timing,
-        integration=data.train.integration,
-        **{**DIAGNOSE_FIT, **options},
-    )
-    return identify(data.runs.raw, replace(data.ax, effects=tuple(effects)), settings)
+    restarted rates ended higher on training; docs/diagnosis.md "Stop 26").
+
+    `identify` is deterministic (seeded): a call with the same effects,
+    timing and options on the same data returns the first call's result
+    (`DiagnosisData.identified`). The read-out stages asked twice for the
+    same fit (reference input delay seed 408: 7 s of 56; docs/diagnosis.md
+    "Stop 66")."""
+    effects = tuple(effects)
+    key = (_held_key(effects), timing, tuple(sorted(options.items())))
+    if key not in data.identified:
+        settings = IdSettings(
+            side_source=data.side_source,
+            seed=data.seed,
+            timing=timing,
+            integration=data.train.integration,
+            **{**DIAGNOSE_FIT, **options},
+        )
+        data.identified[key] = identify(data.runs.raw, replace(data.ax, effects=effects), settings)
+    return data.identified[key]
+
+
+def _held_key(effects: tuple[EffectSpec, ...]) -> tuple:
+    """`effects` as a dictionary key: names and parameter values."""
+    return tuple((e.name, tuple(sorted(dict(e.params).items()))) for e in effects)
 
 
 def _effect_itself(data, st, verdicts) -> list[Verdict]:
