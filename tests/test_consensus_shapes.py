@@ -66,12 +66,24 @@ def test_an_outlier_takes_the_others_shape_and_keeps_its_level():
 def test_two_groups_each_lend_their_shape_to_the_others():
     # Two against two: alpha alone cannot tell which pair is off, so each
     # pair's shape is tried on the other, together and one at a time.
-    t = _table([1.8e5, 280.0, 240.0, 1.2e5], [6.2, 2.2, 2.1, 0.15])
+    t = _table([1.8e5, 280.0, 240.0, 1.2e5], [2.6, 2.2, 2.1, 1.9])
     shaped = [RATE_LAYOUT.as_table(x) for x in consensus_shapes(RATE_LAYOUT.from_table(t))]
     moved = [tuple(np.flatnonzero((s != t).any(axis=1))) for s in shaped]
     assert moved == [(0, 3), (0,), (3,), (1, 2), (1,), (2,)]
     assert shaped[0][[0, 3], ALPHA] == pytest.approx([260.0, 260.0])
     assert shaped[3][[1, 2], ALPHA] == pytest.approx([1.5e5, 1.5e5])
+
+
+def test_a_static_level_far_above_the_others_is_an_outlier_too():
+    # The input-delay refit of reference seed 409: L- static 21 times its
+    # Coulomb level, the others 2.2-2.9, every alpha alike.
+    t = _table([385.0, 272.0, 224.0, 807.0], [2.9, 2.3, 2.2, 21.0])
+    shaped = consensus_shapes(RATE_LAYOUT.from_table(t))
+    assert len(shaped) == 1 + 4
+    s = RATE_LAYOUT.as_table(shaped[0])
+    assert s[3, STATIC] / s[3, COULOMB] == pytest.approx(2.3)
+    assert s[3, ALPHA] == pytest.approx(272.0)
+    assert (s[:3] == t[:3]).all()
 
 
 def test_groups_split_at_gaps_wider_than_the_spread():
@@ -99,10 +111,13 @@ def test_a_spoiled_shape_is_restored_where_it_fits_better():
     spoiled[0, ALPHA] *= 1000.0
     spoiled[0, STATIC] = 6.0 * spoiled[0, COULOMB]
     start = RATE_LAYOUT.from_table(spoiled)
-    # One iteration cannot walk alpha back a thousandfold.
+    # One iteration cannot walk the shape back.
     fit = fit_candidates(train, start, ["none"], max_iter=1)["none"]
-    alpha = RATE_LAYOUT.column(fit.rate_vector, "alpha")
-    assert abs(np.log(alpha[0] / np.median(alpha[1:]))) < np.log(SHAPE_SPREAD)
+    t = RATE_LAYOUT.as_table(fit.rate_vector)
+    ratio = t[:, STATIC] / t[:, COULOMB]
+    spread = np.log(SHAPE_SPREAD)
+    assert abs(np.log(t[0, ALPHA] / np.median(t[1:, ALPHA]))) < spread
+    assert abs(np.log(ratio[0] / np.median(ratio[1:]))) < spread
     # ... and the training runs are fitted as well as from the truth.
     truth = fit_candidates(train, x, ["none"], max_iter=1)["none"]
     assert fit.sse <= 1.05 * truth.sse

@@ -6,7 +6,8 @@ Reference input delay seed 379 (covered design; the reference simulator
 shares no code with the model; its gyro averages over the sample, the
 delay is 8.1 ms). A delay half a sample long at the point reading fits the
 training runs almost as well as the true delay at the averaged reading,
-and far worse held out. `diagnose` fitted it long at the data's read-out,
+and was far worse held out (at the noise since stop 67, see the first
+test). `diagnose` fitted it long at the data's read-out,
 and `identify` with it held chose the point reading. Seed 379 shaped the
 stage: a regression test, not a validation.
 """
@@ -45,12 +46,17 @@ def case():
     return data, again, fit, checked[1][0], truth  # the held-out run as given
 
 
-def test_at_the_point_reading_the_delay_fits_training_and_fails_held_out(case):
+def test_at_the_point_reading_the_delay_fits_training_and_held_out(case):
+    # Stop 59 found this fit above 10 noise floors held out: a regime's
+    # friction shape left far from the others' where the training runs do
+    # not test it. Given the others' shape where that fits the training
+    # runs better (`candidates._consensus_shapes`, stop 67; seed 379 did
+    # not shape that stage), it reads at the noise held out too.
     data, _, fit, _, truth = case
     sigma = truth["sensors"]["gyro_noise_rad_s"]
     held = np.concatenate(holdout_residual(data.held, fit))
     assert np.sqrt(fit.sse / fit.n_samples) <= 1.05 * sigma
-    assert np.sqrt(np.mean(held**2)) > 10 * sigma
+    assert np.sqrt(np.mean(held**2)) <= 1.2 * sigma
 
 
 def test_the_averaged_reading_with_the_delay_refitted_is_chosen(case):

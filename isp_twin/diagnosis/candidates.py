@@ -193,7 +193,7 @@ def fit_candidates(
     layouts, fits, scales = _best_per_candidate(layouts, solve_many(problems, evaluate), scales)
     if polish:
         fits = _polish_effects(stack, layouts, fits, scales, max_iter, fixed)
-    fits = _consensus_shapes(stack, layouts, fits, fixed)
+    fits = _consensus_shapes(layouts, fits, scales, max_iter, evaluate)
     return {
         layout[0]: _named_result(layout, fit, classes, stack, fixed)
         for layout, fit in zip(layouts, fits)
@@ -467,71 +467,70 @@ def _polish_effects(stack, layouts, fits, scales, max_iter, fixed) -> list[FitRe
 
 def consensus_shapes(x_rate: np.ndarray) -> list[np.ndarray]:
     """Rate vectors (`RATE_LAYOUT.size`,) to try instead of `x_rate` where
-    the regimes' Stribeck decays alpha fall apart (`shape_groups`): for each
-    group, every regime outside it given the group's shape, all at once and
-    (with several outside) one at a time. Given a group's shape, a regime
-    keeps its Coulomb level and takes the median of the group's alpha and
-    of its static over Coulomb ratio."""
-    x = np.asarray(x_rate, float)
-    table = RATE_LAYOUT.as_table(x)
+    the regimes' friction shapes fall apart: their Stribeck decays alpha,
+    or their static over Coulomb ratios, in more than one group
+    (`shape_groups`). For each group, every regime outside it is given the
+    group's shape, all at once and (with several outside) one at a time:
+    it keeps its Coulomb level and takes the median of the group's alpha
+    and of its static over Coulomb ratio."""
+    table = RATE_LAYOUT.as_table(np.asarray(x_rate, float))
     alpha, static, coulomb = (RATE_LAYOUT.field_index(f) for f in ("alpha", "static", "coulomb"))
-    groups = shape_groups(table[:, alpha])
-    out = []
-    for g in groups if len(groups) > 1 else []:
-        outside = [r for r in range(len(table)) if r not in g]
-        shape_alpha = np.median(table[g, alpha])
-        ratio = np.median(table[g, static] / table[g, coulomb])
-        for rs in [outside] + ([[r] for r in outside] if len(outside) > 1 else []):
-            t = table.copy()
-            t[rs, alpha] = shape_alpha
-            t[rs, static] = t[rs, coulomb] * ratio
-            out.append(t.ravel())
+    ratio = table[:, static] / table[:, coulomb]
+    out: list[np.ndarray] = []
+    for groups in (shape_groups(table[:, alpha]), shape_groups(ratio)):
+        for g in groups if len(groups) > 1 else []:
+            outside = [r for r in range(len(table)) if r not in g]
+            for rs in [outside] + ([[r] for r in outside] if len(outside) > 1 else []):
+                t = table.copy()
+                t[rs, alpha] = np.median(table[g, alpha])
+                t[rs, static] = t[rs, coulomb] * np.median(ratio[g])
+                if not any(np.array_equal(t.ravel(), o) for o in out):
+                    out.append(t.ravel())
     return out
 
 
-def shape_groups(alpha: np.ndarray) -> list[list[int]]:
-    """The regimes grouped by their alpha: sorted, split wherever the next
-    alpha is more than `SHAPE_SPREAD` times the one before; one group where
-    they all lie within that."""
-    order = np.argsort(alpha)
+def shape_groups(values: np.ndarray) -> list[list[int]]:
+    """The regimes grouped by a positive shape quantity (alpha, or static
+    over Coulomb): sorted, split wherever the next value is more than
+    `SHAPE_SPREAD` times the one before; one group where they all lie
+    within that of their neighbours."""
+    order = np.argsort(values)
     groups = [[int(order[0])]]
     for prev, r in zip(order[:-1], order[1:]):
-        if alpha[r] > SHAPE_SPREAD * alpha[prev]:
+        if values[r] > SHAPE_SPREAD * values[prev]:
             groups.append([])
         groups[-1].append(int(r))
     return groups
 
 
-def _consensus_shapes(stack, layouts, fits, fixed) -> list[FitResult]:
-    """Each fit with the regimes whose Stribeck shape lies far from the
-    others' given the others' shape (`consensus_shapes`), kept where that
-    fits the training runs better.
+def _consensus_shapes(layouts, fits, scales, max_iter, evaluate) -> list[FitResult]:
+    """Each fit refitted from the regimes whose friction shape lies far from
+    the others' given their shape (`consensus_shapes`; the best of those
+    starts, one batched simulation), kept where that fits the training runs
+    better.
 
     A regime whose static level the training runs barely test (no
     breakaway there) sits in a flat valley of the cost: Levenberg-Marquardt
-    and the static scan walk it anywhere. Reference dead zone seed 409,
-    round 1: R+ and L- at alpha 1.8e5 and 1.2e5 s/rad (the others 243-283),
-    R+ static 6.2x its Coulomb level; 1.00 noise floors on training, 104
-    held out. With the others' shape both read 0.99 on training and 0.98
-    held out. Same sse-only rule as identify's `_consensus_restarts`; one
-    batched simulation per fit, no refit. The intervals stay the fit's
-    (its Jacobian), as in `_polish_effects`."""
-    tried = [(i, _shaped_points(fit.x)) for i, fit in enumerate(fits)]
-    tried = [(i, xs) for i, xs in tried if len(xs)]
+    and the static scan walk it anywhere, and the held-out run pays for it.
+    Reference seed 409 (docs/diagnosis.md "Stop 67"), round 1: the dead-zone
+    refit with R+ and L- at alpha 1.8e5 and 1.2e5 s/rad (the others
+    243-283), 1.00 noise floors on training, 104 held out; the input-delay
+    refit with L- static 21 times its Coulomb level (the others 2.2-2.9),
+    0.98 on training, 154 held out. The same sse-only rule as identify's
+    `_consensus_restarts`; the refit has no static scan (it would walk the
+    level off again)."""
+    tried = [(i, pts) for i, fit in enumerate(fits) if len(pts := _shaped_points(fit.x))]
     if not tried:
         return list(fits)
-    batch = []
-    for i, xs in tried:
-        n, vec, frozen, start = layouts[i]
-        rate, eff = vec.split(xs)
-        eff.update({p: np.full(xs.shape[0], start[p]) for p in frozen})
-        batch.append((rate, None if n == BASELINE else n, {} if n == BASELINE else eff))
+    starts = []
+    for (i, xs), res in zip(tried, evaluate(tried)):
+        starts.append((i, xs[int(np.argmin(np.einsum("pm,pm->p", res, res)))]))
+    problems = [lm_steps(x, *_shape_bounds(x, scales[i]), max_iter=max_iter) for i, x in starts]
+    refits = solve_many(problems, lambda reqs: evaluate([(starts[j][0], x) for j, x in reqs]))
     out = list(fits)
-    for (i, xs), res in zip(tried, residuals_many(stack, batch, fixed)):
-        sse = np.einsum("pm,pm->p", res, res)
-        k = int(np.argmin(sse))
-        if sse[k] < fits[i].sse:
-            out[i] = replace(fits[i], x=xs[k], residual=res[k], sse=float(sse[k]))
+    for (i, _), fit in zip(starts, refits):
+        if fit.sse < fits[i].sse:
+            out[i] = replace(fit, sse_log=fits[i].sse_log + fit.sse_log)
     return out
 
 
@@ -540,6 +539,13 @@ def _shaped_points(x: np.ndarray) -> np.ndarray:
     n = RATE_LAYOUT.size
     shaped = consensus_shapes(x[:n])
     return np.array([np.r_[r, x[n:]] for r in shaped]).reshape(len(shaped), len(x))
+
+
+def _shape_bounds(x: np.ndarray, scale: tuple) -> tuple[np.ndarray, ...]:
+    """(lower, upper, scale) of a refit from `x`: the rate part's around `x`
+    (`rate_bounds`), the effect part's as in `scale`."""
+    n = RATE_LAYOUT.size
+    return tuple(np.r_[r, v[n:]] for r, v in zip(rate_bounds(x[:n]), scale))
 
 
 def _result(
