@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from truth_error import measured_runs, truth_rate_vector
+from truth_error import training_stack, truth_rate_vector
 
 from isp_twin.diagnosis.candidates import (
     SHAPE_SPREAD,
@@ -21,11 +21,7 @@ from isp_twin.diagnosis.candidates import (
     fit_candidates,
     shape_groups,
 )
-from isp_twin.diagnosis.prepared_runs import fused_runs
-from isp_twin.estimation.simulation_error import stack_runs
-from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import RATE_LAYOUT
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 from isp_twin.reference import design_experiment
 
 SEED = 202  # reference clean axis 202, covered design
@@ -95,14 +91,7 @@ def test_groups_split_at_gaps_wider_than_the_spread():
 
 def _training_stack():
     exp = design_experiment(SEED, "none", held_out="covered")
-    runs = [d for n, d in measured_runs(exp).items() if n != "heldout"]
-    train = stack_runs(
-        fused_runs(runs, Timing(0.0, True), DEFAULT_INTEGRATION),
-        side=None,
-        gyro_average=True,
-        integration=DEFAULT_INTEGRATION,
-    )
-    return train, truth_rate_vector(exp.truth())
+    return training_stack(exp), truth_rate_vector(exp.truth())
 
 
 def test_a_spoiled_shape_is_restored_where_it_fits_better():

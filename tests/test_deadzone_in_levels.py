@@ -14,15 +14,11 @@ raised by its gain times the true width.
 from __future__ import annotations
 
 import numpy as np
-from truth_error import measured_runs, truth_rate_vector
+from truth_error import training_stack, truth_rate_vector
 
 from isp_twin.diagnosis.candidates import fit_candidates
-from isp_twin.diagnosis.prepared_runs import fused_runs
-from isp_twin.estimation.simulation_error import stack_runs
-from isp_twin.identification.read_out import Timing
 from isp_twin.model.effects.deadzone import Deadzone
 from isp_twin.model.parameters import RATE_LAYOUT
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION
 from isp_twin.reference import design_experiment
 
 SEED = 334  # reference dead zone 334, covered design: a 126-digit band
@@ -33,14 +29,7 @@ def _case():
     truth = exp.truth()
     x = truth_rate_vector(truth)
     width = truth["effects"][0]["params"]["width_digits"]
-    runs = [d for n, d in measured_runs(exp).items() if n != "heldout"]
-    train = stack_runs(
-        fused_runs(runs, Timing(0.0, True), DEFAULT_INTEGRATION),
-        side=None,
-        gyro_average=True,
-        integration=DEFAULT_INTEGRATION,
-    )
-    return train, x, width
+    return training_stack(exp), x, width
 
 
 def _carried(x: np.ndarray, width: float) -> np.ndarray:

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from isp_twin.diagnosis.prepared_runs import checked_inputs
+from isp_twin.diagnosis.prepared_runs import checked_inputs, fused_runs
 from isp_twin.diagnosis.search import _prepared
 from isp_twin.estimation.parameter_file import fitted_axis
+from isp_twin.estimation.simulation_error import RunStack, stack_runs
 from isp_twin.identification.cost import rmse
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing, fitted_with
@@ -53,6 +54,18 @@ def truth_parameter_set(
     record = fitted_with(DEFAULT_INTEGRATION, timing)
     ax = fitted_axis(params.axis(axis), x, np.full_like(x, np.nan), (), record, note)
     return params.with_axis(axis, ax)
+
+
+def training_stack(exp) -> RunStack:
+    """A reference experiment's training runs (all but "heldout") at the
+    averaged gyro reading, fused angle, as one `RunStack`."""
+    runs = [d for n, d in measured_runs(exp).items() if n != "heldout"]
+    return stack_runs(
+        fused_runs(runs, Timing(0.0, True), DEFAULT_INTEGRATION),
+        side=None,
+        gyro_average=True,
+        integration=DEFAULT_INTEGRATION,
+    )
 
 
 def measured_runs(exp) -> dict[str, MeasuredData]:

@@ -7,7 +7,9 @@ A candidate's free parameters are the rate-form parameters of Eq. 6
 `guesses(context)`: all guesses are simulated in one batch and the best
 starts a bounded Levenberg-Marquardt (`fit.levenberg_marquardt`); periodic
 and discrete things (cogging period, delay, dead-zone width, resonance
-frequency) are thereby searched globally on a grid first.
+frequency) are thereby searched globally on a grid first. A regime whose
+friction shape ends far from the other regimes' is refitted from theirs
+(`_consensus_shapes`), kept where that fits the training runs better.
 """
 
 from __future__ import annotations
@@ -45,9 +47,9 @@ BASELINE = "none"
 _RATE_LOWER = {"pole": 0.05, "gain": 1e-12, "static": 1e-12, "coulomb": 1e-12, "alpha": 1e-9}
 #: Rate parameters refitted with the effect in the polish (`_polish_effects`).
 POLISH_RATE: tuple[int, ...] = ()
-#: The factor between two regimes' Stribeck decays alpha beyond which
-#: `shape_groups` puts them in different groups (identify's default
-#: `Settings.regime_spread`).
+#: The factor between two regimes' friction shapes (their Stribeck decays
+#: alpha, or their static over Coulomb ratios) beyond which `shape_groups`
+#: puts them in different groups (identify's default `Settings.regime_spread`).
 SHAPE_SPREAD = 3.0
 
 
