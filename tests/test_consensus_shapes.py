@@ -11,25 +11,18 @@ the way the dead-zone refit of reference seed 409 left two regimes
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 from truth_error import training_stack, truth_rate_vector
 
-from isp_twin.diagnosis import candidates
 from isp_twin.diagnosis.candidates import (
-    SHAPE_FLAT_COST,
     SHAPE_SPREAD,
     consensus_shapes,
     fit_candidates,
     shape_groups,
 )
-from isp_twin.estimation.least_squares import solve_many
-from isp_twin.estimation.simulation_error import residuals_many
 from isp_twin.model.parameters import RATE_LAYOUT
 from isp_twin.reference import design_experiment
-from isp_twin.reference.axis import simulate
 
 SEED = 202  # reference clean axis 202, covered design
 ALPHA = RATE_LAYOUT.field_index("alpha")
@@ -117,47 +110,3 @@ def test_a_spoiled_shape_is_restored_where_it_fits_better():
     # ... and the training runs are fitted as well as from the truth.
     truth = fit_candidates(train, x, ["none"], max_iter=1)["none"]
     assert fit.sse <= 1.05 * truth.sse
-
-
-def _pinned_experiment(regime: int, factor: float):
-    """Reference clean axis 202 with one regime's Stribeck decay alpha
-    times `factor`, its training runs simulated again (same commands)."""
-    exp = design_experiment(SEED, "none", held_out="covered")
-    regimes = list(exp.drawn.axis.regimes)
-    regimes[regime] = replace(regimes[regime], alpha_s_rad=regimes[regime].alpha_s_rad * factor)
-    drawn = replace(exp.drawn, axis=replace(exp.drawn.axis, regimes=tuple(regimes)))
-    runs = dict(exp.runs)
-    for i, name in enumerate(("train1", "train2")):
-        ex = exp.excitations[name]
-        runs[name] = simulate(
-            drawn.axis,
-            ex.command(),
-            drawn.effects,
-            drawn.sensors,
-            dt=ex.dt,
-            substeps=exp.substeps,
-            theta0_rad=ex.initial_angle_rad,
-            seed=SEED + i,
-        )
-    return replace(exp, drawn=drawn, runs=runs)
-
-
-def test_a_shape_the_training_runs_pin_is_not_refitted(monkeypatch):
-    # A regime whose Stribeck hump is really 30 times wider than the
-    # others': the consensus starts cost far more than SHAPE_FLAT_COST
-    # times the fit, so the stage simulates them once and refits nothing.
-    exp = _pinned_experiment(0, 0.03)
-    train, x = training_stack(exp), truth_rate_vector(exp.truth())
-    sizes = []
-
-    def counted(problems, evaluate):
-        sizes.append(len(problems))
-        return solve_many(problems, evaluate)
-
-    monkeypatch.setattr(candidates, "solve_many", counted)
-    fit = fit_candidates(train, x, ["none"], max_iter=1, polish=False)["none"]
-    assert consensus_shapes(fit.rate_vector), "the fit's shapes lie apart"
-    assert sizes == [1]  # the fit itself, no consensus refit
-    starts = np.array(consensus_shapes(fit.rate_vector))
-    res = residuals_many(train, [(starts, None, {})])[0]
-    assert np.einsum("pm,pm->p", res, res).min() > SHAPE_FLAT_COST * fit.sse

@@ -51,13 +51,6 @@ POLISH_RATE: tuple[int, ...] = ()
 #: alpha, or their static over Coulomb ratios) beyond which `shape_groups`
 #: puts them in different groups (identify's default `Settings.regime_spread`).
 SHAPE_SPREAD = 3.0
-#: The training sse of the best consensus start over the fit's own beyond
-#: which the training runs pin the regimes' shapes where they are: no refit
-#: from there (`_consensus_shapes`). The starts in a flat valley cost about
-#: what the fit costs (0.97-1.06 of it on reference seed 409); those of
-#: shapes the runs determine, tens to thousands of times (docs/diagnosis.md
-#: "Stop 68").
-SHAPE_FLAT_COST = 10.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -516,10 +509,7 @@ def _consensus_shapes(layouts, fits, scales, max_iter, evaluate) -> list[FitResu
     """Each fit refitted from the regimes whose friction shape lies far from
     the others' given their shape (`consensus_shapes`; the best of those
     starts, one batched simulation), kept where that fits the training runs
-    better. A start costing more than `SHAPE_FLAT_COST` times the fit is
-    not refitted: there the runs pin the shapes (on reference cogging 410,
-    dead zone 409 and LuGre 410, 5 of 38 such refits beat their fit, by
-    0.02-5.5 % of its sse).
+    better.
 
     A regime whose static level the training runs barely test (no
     breakaway there) sits in a flat valley of the cost: Levenberg-Marquardt
@@ -536,11 +526,7 @@ def _consensus_shapes(layouts, fits, scales, max_iter, evaluate) -> list[FitResu
         return list(fits)
     starts = []
     for (i, xs), res in zip(tried, evaluate(tried)):
-        sse = np.einsum("pm,pm->p", res, res)
-        if sse.min() <= SHAPE_FLAT_COST * fits[i].sse:
-            starts.append((i, xs[int(np.argmin(sse))]))
-    if not starts:
-        return list(fits)
+        starts.append((i, xs[int(np.argmin(np.einsum("pm,pm->p", res, res)))]))
     problems = [lm_steps(x, *_shape_bounds(x, scales[i]), max_iter=max_iter) for i, x in starts]
     refits = solve_many(problems, lambda reqs: evaluate([(starts[j][0], x) for j, x in reqs]))
     out = list(fits)
