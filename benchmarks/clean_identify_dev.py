@@ -21,12 +21,12 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT.parent))
 sys.path.insert(0, str(ROOT))
 
+import isp_twin  # noqa: F401, E402  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+import numpy as np  # noqa: E402
 from identify_reference import run_command  # noqa: E402
 
 from isp_twin.reference import RUN_NAMES  # noqa: E402

@@ -24,6 +24,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import isp_twin  # noqa: F401  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+
 import mujoco
 
 from isp_twin.experiments.closed_loop import ClosedLoop

@@ -13,6 +13,8 @@ from __future__ import annotations
 import argparse
 import time
 
+import isp_twin  # noqa: F401  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+
 import numpy as np
 
 from isp_twin.diagnosis.search import DEFAULT_ITERATIONS, diagnose

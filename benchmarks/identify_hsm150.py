@@ -30,6 +30,8 @@ import sys
 import time
 from pathlib import Path
 
+import isp_twin  # noqa: F401  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+
 import numpy as np
 
 from isp_twin.cli import main as cli

@@ -63,10 +63,11 @@ import time
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+import isp_twin  # noqa: F401, E402  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+import numpy as np  # noqa: E402
 
 from isp_twin.errors import IspTwinError  # noqa: E402
 from isp_twin.experiments.sweep.execute import dask_client  # noqa: E402

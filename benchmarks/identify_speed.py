@@ -17,6 +17,8 @@ import argparse
 import dataclasses
 import time
 
+import isp_twin  # noqa: F401  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+
 import numpy as np
 
 from isp_twin.identification.experiments import GYRO_NOISE_DEG_S, RESOLVER_LSB_DEG, generate_set

@@ -29,6 +29,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import isp_twin  # noqa: F401  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+
 import numpy as np
 
 from isp_twin.experiments.paper import TABLE4_ACTUAL, TABLE6, relative_reduction

@@ -19,6 +19,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import isp_twin  # noqa: F401  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+
 import numpy as np
 
 from isp_twin.experiments.results import RunResult

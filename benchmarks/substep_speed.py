@@ -35,12 +35,12 @@ import tempfile
 import time
 from pathlib import Path
 
-import numba
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
+import isp_twin  # noqa: F401, E402  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
 from substep_kernel_reference import advance_row_by_row  # noqa: E402
 
 from isp_twin.identification.measured import MeasuredData  # noqa: E402

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import argparse
 
+import isp_twin  # noqa: F401  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+
 import numpy as np
 
 from isp_twin.identification.cost import rmse

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import time
 
+import isp_twin  # noqa: F401  # isort: skip  (first: its OpenBLAS settings precede numpy's)
+
 import mujoco
 import numpy as np
 

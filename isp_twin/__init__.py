@@ -9,6 +9,11 @@ isolation metric (Eq. 10) and the friction feed-forward NFC (Eq. 11-14).
 __version__ = "0.1.0"
 
 import os as _os
+import sys as _sys
+import warnings as _warnings
+
+#: What the environment set itself before this package set anything.
+_USER_BLAS = frozenset(v for v in ("OPENBLAS_NUM_THREADS", "OPENBLAS_CORETYPE") if v in _os.environ)
 
 # One BLAS thread unless the user says otherwise: the fits' matrices are small
 # (12000 x 20), and on a shared 2-core machine OpenBLAS's thread pool made one
@@ -37,4 +42,30 @@ def _avx2() -> bool:
 # pinned, a scenario and seed give the same numbers on any such machine.
 if _avx2():
     _os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")
+
+
+def blas_settings_too_late() -> tuple[str, ...]:
+    """The BLAS settings above that could not act: numpy, and OpenBLAS with
+    it, was loaded before this package (and the environment had not set
+    them). Empty when they hold."""
+    if "numpy" not in _sys.modules:
+        return ()
+    wanted = ["OPENBLAS_NUM_THREADS"] + (["OPENBLAS_CORETYPE"] if _avx2() else [])
+    return tuple(v for v in wanted if v not in _USER_BLAS)
+
+
+# A script that loads numpy first runs OpenBLAS's own kernel and threads:
+# its fits round differently and can take another path than the command's
+# (reference sensor bias seed 413: diagnose right at 2.51 noise floors from
+# the command, `none` at 81 from a script that imported numpy first;
+# docs/diagnosis.md "Stop 70"). Said once, at import, not silently.
+if blas_settings_too_late():
+    _warnings.warn(
+        "isp_twin: numpy was imported before isp_twin, so "
+        + " and ".join(blas_settings_too_late())
+        + " could not be set: identify/diagnose may round differently from the isp-twin "
+        + "command (import isp_twin first, or set them in the environment)",
+        RuntimeWarning,
+        stacklevel=2,
+    )
 del _os, _var

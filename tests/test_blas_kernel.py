@@ -8,6 +8,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
+
+import pytest
 
 from isp_twin import _avx2
 
@@ -29,3 +32,39 @@ def test_the_package_pins_the_haswell_kernel_where_the_cpu_has_avx2():
 
 def test_a_users_kernel_wins():
     assert _kernel_seen("Zen") == "Zen"
+
+
+def _warned(code: str, env_set: dict[str, str]) -> bool:
+    """Whether `code` run in a fresh interpreter warns that the BLAS settings
+    came too late, the two OpenBLAS variables only as `env_set` gives them."""
+    env = {k: v for k, v in os.environ.items() if k not in BLAS_VARS} | env_set
+    cmd = [sys.executable, "-W", "error::RuntimeWarning", "-c", code]
+    out = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0 or "RuntimeWarning" in out.stderr, out.stderr
+    return "numpy was imported before isp_twin" in out.stderr
+
+
+BLAS_VARS = ("OPENBLAS_NUM_THREADS", "OPENBLAS_CORETYPE")
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_numpy_loaded_first_is_said_not_silent():
+    # The settings can no longer act: a script's fits would take the
+    # machine's own kernel and threads (docs/diagnosis.md "Stop 70").
+    assert _warned("import numpy, isp_twin", {})
+
+
+def test_the_package_loaded_first_or_the_settings_given_is_silent():
+    assert not _warned("import isp_twin, numpy", {})
+    given = {"OPENBLAS_NUM_THREADS": "1", "OPENBLAS_CORETYPE": "Haswell"}
+    assert not _warned("import numpy, isp_twin", given)
+
+
+@pytest.mark.parametrize("script", sorted(p.name for p in (ROOT / "benchmarks").glob("*.py")))
+def test_every_benchmark_loads_the_package_before_numpy(script):
+    # Run as a script, benchmarks/ first on sys.path; `run_name` keeps its main() from running.
+    code = (
+        f"import runpy, sys; sys.path.insert(0, {str(ROOT / 'benchmarks')!r}); "
+        f"runpy.run_path({str(ROOT / 'benchmarks' / script)!r}, run_name='imported')"
+    )
+    assert not _warned(code, {})
