@@ -12,16 +12,6 @@ import os as _os
 import sys as _sys
 import warnings as _warnings
 
-#: What the environment set itself before this package set anything.
-_USER_BLAS = frozenset(v for v in ("OPENBLAS_NUM_THREADS", "OPENBLAS_CORETYPE") if v in _os.environ)
-
-# One BLAS thread unless the user says otherwise: the fits' matrices are small
-# (12000 x 20), and on a shared 2-core machine OpenBLAS's thread pool made one
-# such SVD 0.34 s instead of 0.007 s (measured; it dominated `identify`). Set
-# before numpy is first imported by the package; an explicit setting wins.
-for _var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    _os.environ.setdefault(_var, "1")
-
 
 def _avx2() -> bool:
     """The CPU has AVX2 (Linux: /proc/cpuinfo; elsewhere: not known, False)."""
@@ -32,6 +22,10 @@ def _avx2() -> bool:
         return False
 
 
+# One BLAS thread unless the user says otherwise: the fits' matrices are small
+# (12000 x 20), and on a shared 2-core machine OpenBLAS's thread pool made one
+# such SVD 0.34 s instead of 0.007 s (measured; it dominated `identify`).
+#
 # One OpenBLAS kernel on every x86-64 machine with AVX2, unless the user says
 # otherwise: OpenBLAS picks its kernels by CPU, the kernels round the fits'
 # SVD and least squares differently, and the trust region then takes another
@@ -40,32 +34,34 @@ def _avx2() -> bool:
 # the noise reached 1.12 noise sigmas held out where the Haswell and Zen
 # kernels stop at 2.0 (tests/test_restart_at_noise.py). With the kernel
 # pinned, a scenario and seed give the same numbers on any such machine.
+#
+# Set before numpy is first imported by the package; an explicit setting wins.
+_BLAS_PIN = {"OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 if _avx2():
-    _os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")
+    _BLAS_PIN["OPENBLAS_CORETYPE"] = "Haswell"
 
-
-def blas_settings_too_late() -> tuple[str, ...]:
-    """The BLAS settings above that could not act: numpy, and OpenBLAS with
-    it, was loaded before this package (and the environment had not set
-    them). Empty when they hold."""
-    if "numpy" not in _sys.modules:
-        return ()
-    wanted = ["OPENBLAS_NUM_THREADS"] + (["OPENBLAS_CORETYPE"] if _avx2() else [])
-    return tuple(v for v in wanted if v not in _USER_BLAS)
-
+#: The OpenBLAS settings above that cannot act: numpy, and OpenBLAS with it,
+#: was loaded before this package and the environment had not set them.
+_TOO_LATE = (
+    tuple(v for v in _BLAS_PIN if v.startswith("OPENBLAS") and v not in _os.environ)
+    if "numpy" in _sys.modules
+    else ()
+)
+for _var, _value in _BLAS_PIN.items():
+    _os.environ.setdefault(_var, _value)
 
 # A script that loads numpy first runs OpenBLAS's own kernel and threads:
 # its fits round differently and can take another path than the command's
 # (reference sensor bias seed 413: diagnose right at 2.51 noise floors from
 # the command, `none` at 81 from a script that imported numpy first;
 # docs/diagnosis.md "Stop 70"). Said once, at import, not silently.
-if blas_settings_too_late():
+if _TOO_LATE:
     _warnings.warn(
         "isp_twin: numpy was imported before isp_twin, so "
-        + " and ".join(blas_settings_too_late())
+        + " and ".join(_TOO_LATE)
         + " could not be set: identify/diagnose may round differently from the isp-twin "
         + "command (import isp_twin first, or set them in the environment)",
         RuntimeWarning,
         stacklevel=2,
     )
-del _os, _var
+del _os, _sys, _var, _value

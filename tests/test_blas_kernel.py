@@ -34,6 +34,10 @@ def test_a_users_kernel_wins():
     assert _kernel_seen("Zen") == "Zen"
 
 
+BLAS_VARS = ("OPENBLAS_NUM_THREADS", "OPENBLAS_CORETYPE")
+ROOT = Path(__file__).resolve().parents[1]
+
+
 def _warned(code: str, env_set: dict[str, str]) -> bool:
     """Whether `code` run in a fresh interpreter warns that the BLAS settings
     came too late, the two OpenBLAS variables only as `env_set` gives them."""
@@ -42,10 +46,6 @@ def _warned(code: str, env_set: dict[str, str]) -> bool:
     out = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=ROOT)
     assert out.returncode == 0 or "RuntimeWarning" in out.stderr, out.stderr
     return "numpy was imported before isp_twin" in out.stderr
-
-
-BLAS_VARS = ("OPENBLAS_NUM_THREADS", "OPENBLAS_CORETYPE")
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_numpy_loaded_first_is_said_not_silent():
