@@ -57,7 +57,7 @@ def one(seed: int, workdir: Path, diagnose: bool, timeout_s: float, extra: tuple
     args = ["identify", "train1.csv", "train2.csv", "--validate", "heldout.csv"]
     args += ["--out", "params.yaml", "--json", "identify.json", "--no-report", "--quiet"]
     args += list(extra)
-    code, wall, cpu, last, _ = run_command(args, folder, timeout_s)
+    code, wall, cpu, last, *_ = run_command(args, folder, timeout_s)
     rec.update(identify_code=code, identify_cpu_s=cpu, identify_wall_s=wall)
     if code != 0:
         rec["error"] = last
@@ -75,7 +75,7 @@ def one(seed: int, workdir: Path, diagnose: bool, timeout_s: float, extra: tuple
         args = ["diagnose", "train1.csv", "train2.csv", "--params", "params.yaml"]
         args += ["--holdout", "heldout.csv", "--json", "diagnose.json", "--quiet"]
         args += ["--no-recording", "--report", "diagnosis"]
-        code, wall, cpu, last, _ = run_command(args, folder, timeout_s)
+        code, wall, cpu, last, *_ = run_command(args, folder, timeout_s)
         rec.update(diagnose_code=code, diagnose_cpu_s=cpu)
         if code == 0:
             diag = json.loads((folder / "diagnose.json").read_text())
