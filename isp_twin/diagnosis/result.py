@@ -11,6 +11,7 @@ from isp_twin.diagnosis.candidates import (
     BASELINE,
     CandidateFit,
 )
+from isp_twin.diagnosis.determined import DeterminedHeldOut
 from isp_twin.diagnosis.residual import ResidualAnalysis
 from isp_twin.diagnosis.selection import Verdict
 from isp_twin.estimation.simulation_error import RunStack
@@ -62,33 +63,60 @@ class RoundResult:
 class TrainingExplained:
     """Why effects were adopted with the held-out error above the noise:
     with them the model fits the training runs at the noise and removes
-    most of the held-out excess (`search.EXPLAINED_SHARE`).
+    most of the held-out excess (`search.EXPLAINED_SHARE`), or reaches the
+    noise on the held-out part the training runs determine
+    (`determined`).
 
     Attributes:
         training_over_noise: training RMS error of the model with the
             effects over the noise floor.
         excess_removed: share of the refit without an effect's held-out
             mean-square excess over the noise floor that the effects remove.
+        determined: where the share fell short, the model judged on the
+            held-out samples before its first rest against a regime it
+            never breaks away in on the training runs
+            (`isp_twin.diagnosis.determined.DeterminedHeldOut`); else None.
     """
 
     training_over_noise: float
     excess_removed: float
+    determined: DeterminedHeldOut | None = None
 
     def sentence(self, effects: str) -> str:
         """The verdict's explanation of the adoption."""
-        return (
+        said = (
             f"NOT CONVERGED held out, though the model with {effects} fits the training "
             f"runs at {self.training_over_noise:.2f} x the noise floor and removes "
-            f"{100.0 * self.excess_removed:.2f} % of the held-out excess over the noise: "
-            "the held-out run goes where the training runs leave the model undetermined "
+            f"{100.0 * self.excess_removed:.2f} % of the held-out excess over the noise"
+        )
+        d = self.determined
+        if d is not None:
+            said += (
+                f", and reads {d.over_noise:.2f} x the noise floor (without it "
+                f"{d.base_over_noise:.2f}) over the {d.samples} of {d.of_samples} held-out "
+                "samples before its first rest in a regime it never breaks away in "
+                "on the training runs"
+            )
+        return said + (
+            ": the held-out run goes where the training runs leave the model undetermined "
             "(add a training run that covers it)"
         )
 
     def to_json(self) -> dict:
-        return {
+        out = {
             "training_over_noise_floor": self.training_over_noise,
             "held_out_excess_removed": self.excess_removed,
         }
+        d = self.determined
+        if d is not None:
+            out["held_out_determined"] = {
+                "samples": d.samples,
+                "of_samples": d.of_samples,
+                "rmse_over_noise_floor": d.over_noise,
+                "without_effects_over_noise_floor": d.base_over_noise,
+                "improvement_z": d.improvement_z,
+            }
+        return out
 
 
 @dataclass(frozen=True)
