@@ -527,7 +527,11 @@ def _diagnose_lists(diag: dict) -> dict:
     model never breaks away on the training runs."""
     untrained = diag.get("held_out_breakaways_untrained", [])
     parts = [p["rmse_over_noise_floor"] for p in diag.get("held_out_before_untrained_rest", [])]
+    explained = diag.get("training_explained") or {}
     return {
+        # adopted above the noise on the held-out part the training runs
+        # determine (docs/diagnosis.md "Stop 75")
+        "diagnose_adopted_on_determined": "held_out_determined" in explained,
         "diagnose_tentative": list(diag.get("tentative_effects", [])),
         "diagnose_equivalent": list(diag.get("equivalent_effects", [])),
         "held_out_rests_untrained": [e["regime"] for e in untrained],
@@ -577,6 +581,20 @@ def coverage_lines(records: list[dict], case: str) -> list[str]:
         + determined_lines(records, case)
         + open_lines(records, case)
     )
+
+
+def adopted_lines(records: list[dict], case: str) -> list[str]:
+    """How many axes had their effect adopted on the held-out part the
+    training runs determine (stop 75's rule), and how many of those are
+    right; nothing where none was (on a clean axis every one is wrong)."""
+    adopted = [r for r in records if r.get("diagnose_adopted_on_determined")]
+    if not adopted:
+        return []
+    right = sum(1 for r in adopted if r.get("diagnose_answer") == "right")
+    return [
+        f"{case}: adopted on the held-out part the training runs determine on "
+        f"{len(adopted)}/{len(records)} axes, the right effect on {right}"
+    ]
 
 
 def determined_lines(records: list[dict], case: str) -> list[str]:
@@ -946,7 +964,8 @@ def main(argv: list[str] | None = None) -> int:
         records = [_with_tentative(json.loads(r[0]), workdir) for r in rows]
         records = [_with_coverage(r, workdir) for r in records]
         every.extend(records)
-        for line in target_lines(records, case) + coverage_lines(records, case):
+        lines = target_lines(records, case) + coverage_lines(records, case)
+        for line in lines + adopted_lines(records, case):
             print("  " + line)
         if case == "torque_offset":
             for line in offset_lines(records):

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from isp_twin.diagnosis import search
+from isp_twin.diagnosis.determined import DeterminedHeldOut
 from isp_twin.diagnosis.result import Diagnosis, RoundResult, TrainingExplained
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 
@@ -175,3 +176,56 @@ def test_the_read_out_round_adopts_an_effect_that_explains_the_training_runs(
     else:
         assert got.selected_effect == adopted
         assert got.explained.training_over_noise == pytest.approx(train)
+
+
+def _part(over: float, significant: bool = True) -> DeterminedHeldOut:
+    return DeterminedHeldOut(2484, 5950, over, 5.17, 119.0 if significant else 2.0, significant)
+
+
+@pytest.mark.parametrize(
+    ("part", "adopted", "why"),
+    [
+        (_part(1.01), True, "at the noise where the training runs determine it (input delay 421)"),
+        (_part(1.6), False, "above the noise there too"),
+        (_part(1.01, significant=False), False, "the rule does not hold on the part"),
+        (None, False, "no part to judge (no held-out runs, or under the minimum)"),
+    ],
+)
+def test_short_of_the_share_the_determined_part_decides(monkeypatch, part, adopted, why):
+    """Stop 75: 88 % of the excess removed (input delay 421, 5.11 -> 2.00),
+    under the 90 % share; the part before the first untrained rest decides."""
+    monkeypatch.setattr(search, "determined_part", lambda *args: part)
+    rounds = _rounds(train=1.02, before=5.11, after=2.0, name="input_delay")
+    got = search._explains_training(rounds, data=object())
+    assert (got is not None) == adopted, why
+    if adopted:
+        assert got[1].determined is part
+        assert got[1].excess_removed < search.EXPLAINED_SHARE
+        assert got[1].to_json()["held_out_determined"]["rmse_over_noise_floor"] == 1.01
+
+
+def test_the_part_is_not_asked_where_the_share_decides(monkeypatch):
+    def never(*args):
+        raise AssertionError("the share decided: no part needed")
+
+    monkeypatch.setattr(search, "determined_part", never)
+    kept = search._explains_training(_rounds(1.02, 233.0, 3.6), data=object())
+    assert kept[1].determined is None
+    assert search._explains_training(_rounds(1.6, 5.11, 2.0), data=object()) is None
+    assert search._explains_training(_rounds(1.0, 10.0, 1.2), data=object()) is None
+
+
+def test_without_data_the_share_alone_decides():
+    assert _record(_rounds(train=1.02, before=5.11, after=2.0)) is None
+
+
+def test_the_verdict_states_the_part():
+    got = _diagnosis(TrainingExplained(1.02, 0.8808, _part(1.01)))._verdict_json()
+    assert "reads 1.01 x the noise floor (without it 5.17) over the 2484 of 5950" in got["verdict"]
+    assert got["training_explained"]["held_out_determined"] == {
+        "samples": 2484,
+        "of_samples": 5950,
+        "rmse_over_noise_floor": 1.01,
+        "without_effects_over_noise_floor": 5.17,
+        "improvement_z": 119.0,
+    }
