@@ -20,6 +20,7 @@ from truth_error import prepared_reference, truth_rate_vector
 from isp_twin.diagnosis import determined
 from isp_twin.diagnosis.selection import BLOCK
 from isp_twin.estimation.coverage import untrained_breakaways
+from isp_twin.estimation.simulation_error import WARMUP
 from isp_twin.identification.cost import held_out_determined, model_breakaways
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import RateParams
@@ -55,40 +56,50 @@ def test_the_cut_is_the_one_the_verdicts_report(clean_348):
 def test_a_model_against_itself_gains_nothing(clean_348):
     _, data, x = clean_348
     (cut,) = determined.untrained_cuts(data, _fit(x))
-    r = np.random.default_rng(0).normal(0.0, FLOOR, 5999)
+    counted = int(data.held.mask[0].sum())
+    r = np.random.default_rng(0).normal(0.0, FLOOR, counted)
     got = determined.determined_part(data, _fit(x), _fit(x), [r], [r], FLOOR)
-    assert got.samples == cut - 1 and got.of_samples == r.size
+    # The residuals start after the stack's warm-up (sample WARMUP).
+    assert got.samples == cut - WARMUP and got.of_samples == counted
     assert (
         got.over_noise
         == got.base_over_noise
-        == pytest.approx(np.sqrt(np.mean(r[: cut - 1] ** 2)) / FLOOR)
+        == pytest.approx(np.sqrt(np.mean(r[: cut - WARMUP] ** 2)) / FLOOR)
     )
     assert got.improvement_z == 0.0 and not got.significant
 
 
-def test_residual_k_is_sample_k_plus_one(monkeypatch):
-    """The part of run samples 1..cut-1: residuals 0..cut-2. The base is
+def _held(n: int = 6000):
+    """Stand-in data: one held-out run of `n` samples, the first WARMUP not counted."""
+    mask = np.ones((1, n), dtype=bool)
+    mask[0, :WARMUP] = False
+    return SimpleNamespace(held=SimpleNamespace(mask=mask))
+
+
+def test_the_part_is_the_counted_samples_before_the_cut(monkeypatch):
+    """Run samples WARMUP..cut-1: residuals 0..cut-WARMUP-1. The base is
     off by 10 floors there and at the noise after; the model at the noise
     before the cut and off after it."""
-    cut, n = 1001, 6000
+    cut, n = 1051, 6000 - WARMUP
     monkeypatch.setattr(determined, "untrained_cuts", lambda data, fit: (cut,))
     noise = np.random.default_rng(1).normal(0.0, FLOOR, n)
-    base = noise + np.where(np.arange(n) < cut - 1, 10.0 * FLOOR, 0.0)
-    model = noise + np.where(np.arange(n) < cut - 1, 0.0, 10.0 * FLOOR)
-    got = determined.determined_part(None, _fit(None, -1.0), _fit(None), [base], [model], FLOOR)
-    assert got.samples == cut - 1
+    before_cut = np.arange(n) < cut - WARMUP
+    base = noise + np.where(before_cut, 10.0 * FLOOR, 0.0)
+    model = noise + np.where(before_cut, 0.0, 10.0 * FLOOR)
+    got = determined.determined_part(_held(), _fit(None, -1.0), _fit(None), [base], [model], FLOOR)
+    assert got.samples == cut - WARMUP
     assert got.over_noise == pytest.approx(1.0, abs=0.1)
     assert got.base_over_noise == pytest.approx(np.sqrt(101.0), rel=0.02)
     assert got.significant and got.improvement_z > 3.0
 
 
 def test_a_short_part_is_not_judged(monkeypatch):
-    short = determined.MIN_BLOCKS * BLOCK  # residual samples: one short of the minimum
+    short = WARMUP + determined.MIN_BLOCKS * BLOCK  # one counted sample short of the minimum
+    monkeypatch.setattr(determined, "untrained_cuts", lambda data, fit: (short - 1,))
+    r = np.zeros(6000 - WARMUP)
+    assert determined.determined_part(_held(), _fit(None), _fit(None), [r], [r], FLOOR) is None
     monkeypatch.setattr(determined, "untrained_cuts", lambda data, fit: (short,))
-    r = np.zeros(6000)
-    assert determined.determined_part(None, _fit(None), _fit(None), [r], [r], FLOOR) is None
-    monkeypatch.setattr(determined, "untrained_cuts", lambda data, fit: (short + 1,))
-    assert determined.determined_part(None, _fit(None), _fit(None), [r], [r], FLOOR) is not None
+    assert determined.determined_part(_held(), _fit(None), _fit(None), [r], [r], FLOOR) is not None
 
 
 def test_no_held_out_runs_no_part(clean_348):

@@ -102,15 +102,17 @@ def determined_part(
     after: Sequence[np.ndarray],
     noise_floor: float,
 ) -> DeterminedHeldOut | None:
-    """`fit` (held-out residuals `after`, one array per run, sample 0 left
-    out) against `base` (`before`) on the samples before `fit`'s first
-    untrained rest (`untrained_cuts`) [rad/s]; None without held-out runs
-    or where the part holds fewer than `MIN_BLOCKS` blocks."""
+    """`fit` (held-out residuals `after`, one array per run over its counted
+    samples, `RunStack.mask`) against `base` (`before`) on the samples
+    before `fit`'s first untrained rest (`untrained_cuts`) [rad/s]; None
+    without held-out runs or where the part holds fewer than `MIN_BLOCKS`
+    blocks."""
     cuts = untrained_cuts(data, fit)
     if cuts is None:
         return None
-    # Residual k is sample k + 1: the samples before the rest's first one.
-    keep = [max(c - 1, 0) for c in cuts]
+    # The residuals start after the stack's warm-up: count the counted
+    # samples before each cut.
+    keep = [int(m[:c].sum()) for m, c in zip(data.held.mask, cuts)]
     b = [np.asarray(x)[:k] for x, k in zip(before, keep)]
     a = [np.asarray(x)[:k] for x, k in zip(after, keep)]
     n = sum(x.size for x in a)

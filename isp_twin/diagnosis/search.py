@@ -802,8 +802,8 @@ def _determined_at_noise(rnd, first, data: DiagnosisData | None) -> DeterminedHe
     axis moves again. Reference input delay 421 (docs/diagnosis.md "Stop
     75"): the delay found to 0.2 %, the training runs at 1.02 noise floors
     with it, the held-out run 5.11 -> 2.00 (88 % of the excess removed);
-    before its first rest in R+ (sample 2488 of 6000; the training runs
-    never break away in R+) it reads 1.01, the refit without it 5.17."""
+    before its first rest in R+ (sample 2485 of 6000; the training runs
+    never break away in R+) it reads 1.01, the refit without it 5.22."""
     if data is None:
         return None
     part = determined_part(
