@@ -20,6 +20,22 @@ from round_state_double import RoundStateDouble, fit_double
 from isp_twin.diagnosis import rounds
 from isp_twin.identification.read_out import Timing
 
+#: The joint estimate's parameter in `_stage`'s double.
+JOINT = 2.0
+
+
+def _scale_key(held: dict) -> str:
+    """A hold's key in `_stage`: "joint" at the joint estimate, else
+    "x<factor>" for the joint estimate scaled (`rounds.SCALED_HELD`)."""
+    factor = held["accel_rad_s2"] / JOINT
+    return "joint" if factor == 1.0 else f"x{factor:g}"
+
+
+def _scaled_calls(top: str) -> list[tuple[str, bool]]:
+    """The scaled holds `_torque_global_stage` makes for `top`, read out again."""
+    factors = rounds.SCALED_HELD[top][1] if top in rounds.SCALED_HELD else ()
+    return [(f"x{f:g}", True) for f in factors]
+
 
 def _stage(monkeypatch, top: str, with_joint: bool, sse: dict, peaks=()):
     """`_torque_global_stage` on a leader 10 noise floors out, its refits
@@ -29,9 +45,9 @@ def _stage(monkeypatch, top: str, with_joint: bool, sse: dict, peaks=()):
     calls = []
 
     def refit(data, fit, held=None, free_read_out=False):
-        key = "own" if held is None else held.get("key", "joint")
+        key = "own" if held is None else held["key"] if "key" in held else _scale_key(held)
         calls.append((key, free_read_out))
-        return fit_double(fit.name, {"hold": key}, sse[key])
+        return fit_double(fit.name, {"hold": key}, sse.get(key, 1000.0))
 
     monkeypatch.setattr(rounds, "_refit_globally", refit)
     monkeypatch.setattr(rounds, "_other_basins", lambda data, st, name: [dict(g) for g in peaks])
@@ -39,7 +55,7 @@ def _stage(monkeypatch, top: str, with_joint: bool, sse: dict, peaks=()):
     monkeypatch.setattr(rounds, "_offset_alternative", lambda data, st, v, top: v)
     st = RoundStateDouble({top: fit_double(top, {"own": 1.0}, 100.0)}, floor=1.0)
     st.held_of[top] = [np.full(50, 10.0)]
-    starts = {top: SimpleNamespace(effect=SimpleNamespace(params={"joint": 2.0}))}
+    starts = {top: SimpleNamespace(effect=SimpleNamespace(params={"accel_rad_s2": JOINT}))}
     out = rounds._torque_global_stage(None, st, [], starts if with_joint else {}, top)
     return calls, st, out
 
@@ -48,7 +64,9 @@ def _stage(monkeypatch, top: str, with_joint: bool, sse: dict, peaks=()):
 def test_the_joint_hold_chooses_the_read_out_again_the_own_fit_keeps_the_datas(monkeypatch, top):
     calls, st, out = _stage(monkeypatch, top, True, {"joint": 5.0, "own": 7.0})
     # LuGre is held at its own fit too (`OWN_FIT_TOO`), at the data's read-out.
-    want = [("joint", True)] + ([("own", False)] if top in rounds.OWN_FIT_TOO else [])
+    # LuGre's joint estimate is also held scaled (`SCALED_HELD`), read out again.
+    want = [("joint", True)] + _scaled_calls(top)
+    want += [("own", False)] if top in rounds.OWN_FIT_TOO else []
     assert calls == want
     assert st.updated[top].params == {"hold": "joint"}
     assert out == [top]
@@ -113,3 +131,32 @@ def test_a_peak_within_one_percent_of_the_refits_period_is_not_held_again(monkey
     st = RoundStateDouble({"cogging": fit_double("cogging", {"period_rad": 0.0216})})
     others = rounds._other_basins(SimpleNamespace(train=None), st, "cogging")
     assert [g["period_rad"] for g in others] == [0.0388, 0.0341]
+
+
+# Stop 76 (`rounds.SCALED_HELD`; docs/diagnosis.md "Stop 76"): a leading
+# LuGre's global step is also held at its joint estimate's bristle force
+# scaled by each factor; the lowest training cost is kept.
+def test_a_leading_lugre_keeps_the_scaled_hold_that_fits_the_training_runs_best(monkeypatch):
+    assert "lugre" in rounds.SCALED_HELD
+    best = _scaled_calls("lugre")[-1][0]
+    calls, st, _ = _stage(monkeypatch, "lugre", True, {"joint": 9.0, "own": 7.0, best: 2.0})
+    assert st.updated["lugre"].params == {"hold": best}
+    # A scaled hold that fits worse than the joint estimate's is not kept.
+    _, st, _ = _stage(monkeypatch, "lugre", True, {"joint": 5.0, "own": 7.0, best: 6.0})
+    assert st.updated["lugre"].params == {"hold": "joint"}
+    # Effects outside `SCALED_HELD` are held at the joint estimate only.
+    calls, _, _ = _stage(monkeypatch, "unbalance", True, {"joint": 5.0})
+    assert calls == [("joint", True)]
+
+
+def test_the_scaled_holds_stay_within_the_parameters_bounds():
+    key, factors = rounds.SCALED_HELD["lugre"]
+    lo, hi = rounds.effect_class("lugre").bounds[key]
+    joint = {key: hi / min(factors) * 0.999, "presliding_rad": 2e-3}
+    holds = rounds._scaled_joint("lugre", joint)
+    assert len(holds) == len(factors)
+    assert all(lo <= h[key] <= hi for h in holds)
+    assert max(h[key] for h in holds) == hi
+    # The other parameters stay at the joint estimate.
+    assert all(h["presliding_rad"] == joint["presliding_rad"] for h in holds)
+    assert rounds._scaled_joint("cogging", joint) == []
