@@ -328,10 +328,13 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
         f"held-out RMS error: before {diag.rmse_before / DEG:.4g} deg/s, after {diag.rmse_after / DEG:.4g} deg/s, "
         f"noise floor {diag.noise_floor / DEG:.4g} deg/s"
     )
-    if diag.tentative:
+    t = diag.tentative_fit
+    if diag.tentative and t is not None:
         say(
             f"tentative (not adopted): {', '.join(diag.tentative)} passed the acceptance rule "
-            "but left the held-out error above the noise"
+            f"but left the held-out error at {t.held_out_over_noise:.2f} x the noise floor "
+            f"(training runs {t.training_over_noise:.2f}; without an effect "
+            f"{t.without_over_noise:.2f} held out)"
         )
     if diag.equivalent:
         say(
@@ -340,7 +343,7 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
         )
     builtins.print(result["verdict"])
     if diag.selected_effect == "none":
-        say("no missing effect found")
+        say(_none_found(diag))
         off = diag.implied_torque_offset
         if off is not None and off.consistent and abs(off.value_rad_s2) > off.ci95:
             say(
@@ -353,6 +356,14 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
                 "(the parameters re-identified without a new effect fit significantly better: "
                 "they are the ones written)"
             )
+
+
+def _none_found(diag) -> str:
+    """The answer `none` in words: no effect found, or none adopted where
+    effects were set aside as tentative (not the same answer)."""
+    if diag.tentative:
+        return f"no effect adopted (tentative: {', '.join(diag.tentative)})"
+    return "no missing effect found"
 
 
 def _write_outputs(

@@ -83,6 +83,15 @@ def _fmt(x: float) -> str:
     return "nan" if not np.isfinite(x) else f"{x:.4g}"
 
 
+def _none_note(diag: Diagnosis) -> str:
+    """After a `none`: no effect found, or the tentative effects set aside."""
+    if diag.selected_effect != BASELINE:
+        return ""
+    if diag.tentative:
+        return f" (no effect adopted; tentative: {', '.join(diag.tentative)})"
+    return " (no missing effect found)"
+
+
 def write_report(diag: Diagnosis, path: Path, params_out: Path | None = None) -> Path:
     """Write the Markdown report to `path` and its figure beside it."""
     path = Path(path)
@@ -92,8 +101,9 @@ def write_report(diag: Diagnosis, path: Path, params_out: Path | None = None) ->
     lines = [
         f"# Diagnosis of {diag.axis}",
         "",
-        f"Selected effect: **{j['selected_effect']}**"
-        + (" (no missing effect found)" if j["selected_effect"] == BASELINE else ""),
+        f"Selected effect: **{j['selected_effect']}**" + _none_note(diag),
+        "",
+        f"Verdict: {j['verdict']}",
         "",
         "| held-out RMS error | rad/s | deg/s |",
         "|---|---|---|",

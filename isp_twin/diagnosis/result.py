@@ -27,6 +27,7 @@ from isp_twin.units import DEG
 __all__ = [
     "RoundResult",
     "TrainingExplained",
+    "TentativeFit",
     "Diagnosis",
     "rms_of",
 ]
@@ -120,6 +121,56 @@ class TrainingExplained:
 
 
 @dataclass(frozen=True)
+class TentativeFit:
+    """How far the model with the tentative effects got, where they were set
+    aside (`Diagnosis.tentative`): the verdict states it, so that a `none`
+    never hides an effect that took most of the error away.
+
+    Attributes:
+        effects: the tentative effects, in the order accepted.
+        training_over_noise: training RMS error of the model with them over
+            the noise floor.
+        held_out_over_noise: its held-out RMS error over the noise floor.
+        without_over_noise: the held-out error of the refit without an effect
+            over the noise floor.
+    """
+
+    effects: tuple[str, ...]
+    training_over_noise: float
+    held_out_over_noise: float
+    without_over_noise: float
+
+    def sentence(self) -> str:
+        """The verdict's account of the effects set aside, and what to try."""
+        names = ", ".join(self.effects)
+        it = "they" if len(self.effects) > 1 else "it"
+        said = (
+            f"NOT CONVERGED, no effect adopted: with the tentative {names} the model fits "
+            f"the training runs at {self.training_over_noise:.2f} and the held-out run at "
+            f"{self.held_out_over_noise:.2f} x the noise floor (without an effect "
+            f"{self.without_over_noise:.2f}); {it} passed the acceptance rule but the model "
+            f"is not at the noise, so {it} may stand in for a base model that does not fit"
+        )
+        if self.training_over_noise > CONVERGED_RATIO:
+            return said + (
+                ": the fit stops short on the training runs (try more --iterations, or "
+                "identify again from other parameters)"
+            )
+        return said + (
+            ": the held-out run goes where the training runs leave the model undetermined "
+            "(add a training run that covers it)"
+        )
+
+    def to_json(self) -> dict:
+        return {
+            "effects": list(self.effects),
+            "training_over_noise_floor": self.training_over_noise,
+            "held_out_over_noise_floor": self.held_out_over_noise,
+            "without_effects_over_noise_floor": self.without_over_noise,
+        }
+
+
+@dataclass(frozen=True)
 class Diagnosis:
     """The whole diagnosis of one axis.
 
@@ -142,6 +193,8 @@ class Diagnosis:
             held-out error above `CONVERGED_RATIO` noise floors: not adopted
             (an effect that does not bring the model to the noise may be
             standing in for a base model that does not fit).
+        tentative_fit: how far the model with them got (`TentativeFit`),
+            where there are tentative effects.
         timing: the data's read-out timing (found by the base model's fit,
             or at the file's parameters).
         integration: how the model integrates a sample (`Integration`).
@@ -169,6 +222,7 @@ class Diagnosis:
     refit: Verdict | None = None
     stack: RunStack | None = field(default=None, repr=False)
     tentative: tuple[str, ...] = ()
+    tentative_fit: TentativeFit | None = None
     timing: Timing = Timing()
     integration: Integration = DEFAULT_INTEGRATION
     equivalent: tuple[str, ...] = ()
@@ -224,6 +278,8 @@ class Diagnosis:
             why = "the model is at the noise"
         elif self.explained is not None:
             why = self.explained.sentence(", ".join(f.name for f in self.accepted))
+        elif self.tentative_fit is not None:
+            why = self.tentative_fit.sentence()
         else:
             why = (
                 "NOT CONVERGED: the model has not converged or lacks an effect the "
@@ -235,6 +291,7 @@ class Diagnosis:
             "verdict": f"held-out RMS error {ratio:.2f} x the noise floor: {why}",
             "training_explained": None if self.explained is None else self.explained.to_json(),
             "tentative_effects": list(self.tentative),
+            "tentative_fit": None if self.tentative_fit is None else self.tentative_fit.to_json(),
             "equivalent_effects": list(self.equivalent),
             "equivalent_torque_offset": _offset_json(self.implied_torque_offset),
         }

@@ -93,7 +93,7 @@ from isp_twin.diagnosis.prepared_runs import (
     stacked,
 )
 from isp_twin.diagnosis.residual import analyse
-from isp_twin.diagnosis.result import Diagnosis, TrainingExplained, rms_of
+from isp_twin.diagnosis.result import Diagnosis, TentativeFit, TrainingExplained, rms_of
 from isp_twin.diagnosis.rounds import (
     ALIKE,
     COMMAND_EFFECTS,
@@ -641,7 +641,9 @@ def _final_diagnosis(
     explain the training runs (`kept`: `_explains_training`'s rounds and
     record), the plain refit judged against the given parameters, the
     parameter set updated."""
+    tentative_fit = _tentative_fit(rounds)
     rounds, accepted, tentative, explained = _adopted(rounds, kept)
+    tentative_fit = tentative_fit if tentative else None
     equivalent = equivalent_effects(rounds[0], data.train) if accepted else ()
     train, ax = data.train, data.ax
     x_file, given_fixed = ax.rate_params().to_vector(), tuple(ax.effects)
@@ -684,6 +686,7 @@ def _final_diagnosis(
         refit=refit,
         stack=train,
         tentative=tentative,
+        tentative_fit=tentative_fit,
         timing=data.timing,
         integration=data.integration,
         equivalent=equivalent,
@@ -727,6 +730,23 @@ def _set_aside_tentative(rounds) -> tuple[list, list, tuple[str, ...]]:
             rounds = [replace(r, selected=BASELINE, holdout_after=r.holdout_before) for r in rounds]
             return rounds, [], tentative
     return rounds, accepted, ()
+
+
+def _tentative_fit(rounds) -> TentativeFit | None:
+    """How far the model with `rounds`' accepted effects got (`TentativeFit`),
+    for the verdict where `_set_aside_tentative` sets them aside; None where
+    no round accepted an effect."""
+    accepted = [r for r in rounds if r.selected != BASELINE]
+    if not accepted:
+        return None
+    first, model = rounds[0], accepted[-1].model
+    floor = first.noise_floor
+    return TentativeFit(
+        tuple(r.selected for r in accepted),
+        float(np.sqrt(model.sse / model.n_samples)) / floor,
+        rms_of(accepted[-1].holdout_after) / floor,
+        rms_of(first.holdout_before) / floor,
+    )
 
 
 def _adopted(
