@@ -10,8 +10,10 @@ from typing import Any
 
 
 def fit_double(name: str, params: dict | None = None, sse: float = 0.0, bic: float = 0.0):
-    """A candidate fit as the stages read it: name, effect params, training sse and BIC."""
-    return SimpleNamespace(name=name, params={} if params is None else params, sse=sse, bic=bic)
+    """A candidate fit as the stages read it: name, effect params, training sse
+    and BIC, and the training RMS error as of one sample (rmse = sqrt(sse))."""
+    params = {} if params is None else params
+    return SimpleNamespace(name=name, params=params, sse=sse, bic=bic, rmse=sse**0.5)
 
 
 @dataclass

@@ -149,6 +149,17 @@ def test_a_leading_lugre_keeps_the_scaled_hold_that_fits_the_training_runs_best(
     assert calls == [("joint", True)]
 
 
+def test_the_scaled_holds_are_skipped_where_the_joint_hold_is_at_the_noise(monkeypatch):
+    # Stop 78 (`rounds.SCALED_SKIP_RATIO`): the double's floor is 1 and its
+    # rmse sqrt(sse), so the joint hold's sse decides on either side.
+    at = rounds.SCALED_SKIP_RATIO**2
+    calls, st, _ = _stage(monkeypatch, "lugre", True, {"joint": at * 0.999, "own": 7.0})
+    assert calls == [("joint", True), ("own", False)]
+    assert st.updated["lugre"].params == {"hold": "joint"}
+    calls, _, _ = _stage(monkeypatch, "lugre", True, {"joint": at * 1.001, "own": 7.0})
+    assert calls == [("joint", True)] + _scaled_calls("lugre") + [("own", False)]
+
+
 def test_the_scaled_holds_stay_within_the_parameters_bounds():
     key, factors = rounds.SCALED_HELD["lugre"]
     lo, hi = rounds.effect_class("lugre").bounds[key]
