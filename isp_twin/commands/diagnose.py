@@ -329,9 +329,9 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
         f"noise floor {diag.noise_floor / DEG:.4g} deg/s"
     )
     t = diag.tentative_fit
-    if diag.tentative and t is not None:
+    if t is not None:
         say(
-            f"tentative (not adopted): {', '.join(diag.tentative)} passed the acceptance rule "
+            f"tentative (not adopted): {', '.join(t.effects)} passed the acceptance rule "
             f"but left the held-out error at {t.held_out_over_noise:.2f} x the noise floor "
             f"(training runs {t.training_over_noise:.2f}; without an effect "
             f"{t.without_over_noise:.2f} held out)"

@@ -510,8 +510,9 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     if top in starts:
         # The joint estimate's global step chooses the read-out again (docstring).
         joint = dict(starts[top].effect.params)
-        firsts.append(_refit_globally(data, st.fits[top], joint, free_read_out=True))
-        if firsts[0].rmse > SCALED_SKIP_RATIO * st.floor:
+        held_at_joint = _refit_globally(data, st.fits[top], joint, free_read_out=True)
+        firsts.append(held_at_joint)
+        if held_at_joint.rmse > SCALED_SKIP_RATIO * st.floor:
             firsts += [
                 _refit_globally(data, st.fits[top], h, free_read_out=True)
                 for h in _scaled_joint(top, joint)

@@ -641,9 +641,9 @@ def _final_diagnosis(
     explain the training runs (`kept`: `_explains_training`'s rounds and
     record), the plain refit judged against the given parameters, the
     parameter set updated."""
-    tentative_fit = _tentative_fit(rounds)
+    given = rounds
     rounds, accepted, tentative, explained = _adopted(rounds, kept)
-    tentative_fit = tentative_fit if tentative else None
+    tentative_fit = _tentative_fit(given) if tentative else None
     equivalent = equivalent_effects(rounds[0], data.train) if accepted else ()
     train, ax = data.train, data.ax
     x_file, given_fixed = ax.rate_params().to_vector(), tuple(ax.effects)
@@ -739,13 +739,20 @@ def _tentative_fit(rounds) -> TentativeFit | None:
     accepted = [r for r in rounds if r.selected != BASELINE]
     if not accepted:
         return None
-    first, model = rounds[0], accepted[-1].model
-    floor = first.noise_floor
-    return TentativeFit(
-        tuple(r.selected for r in accepted),
+    train, before, after = _over_noise(accepted[-1], rounds[0])
+    return TentativeFit(tuple(r.selected for r in accepted), train, after, before)
+
+
+def _over_noise(rnd, first) -> tuple[float, float, float]:
+    """(training, held out without an effect, held out with it): the RMS
+    errors of the accepted round `rnd`'s model on the training runs and held
+    out, and of `first` round's refit without an effect held out, over
+    `first`'s noise floor."""
+    floor, model = first.noise_floor, rnd.model
+    return (
         float(np.sqrt(model.sse / model.n_samples)) / floor,
-        rms_of(accepted[-1].holdout_after) / floor,
         rms_of(first.holdout_before) / floor,
+        rms_of(rnd.holdout_after) / floor,
     )
 
 
@@ -796,11 +803,7 @@ def _explained_by(rnd, first, data: DiagnosisData | None = None) -> TrainingExpl
     without an effect, or, given `data`, reaches `CONVERGED_RATIO` on the
     held-out part the training runs determine and passes the acceptance
     rule there (`_determined_at_noise`); else None."""
-    floor = first.noise_floor
-    model = rnd.model
-    train = float(np.sqrt(model.sse / model.n_samples)) / floor
-    before = rms_of(first.holdout_before) / floor
-    after = rms_of(rnd.holdout_after) / floor
+    train, before, after = _over_noise(rnd, first)
     if not (train <= CONVERGED_RATIO and before > after > CONVERGED_RATIO):
         return None
     removed = 1.0 - (after**2 - 1.0) / (before**2 - 1.0)
