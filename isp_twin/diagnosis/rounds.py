@@ -508,15 +508,7 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
         return verdicts
     firsts = []
     if top in starts:
-        # The joint estimate's global step chooses the read-out again (docstring).
-        joint = dict(starts[top].effect.params)
-        held_at_joint = _refit_globally(data, st.fits[top], joint, free_read_out=True)
-        firsts.append(held_at_joint)
-        if held_at_joint.rmse > SCALED_SKIP_RATIO * st.floor:
-            firsts += [
-                _refit_globally(data, st.fits[top], h, free_read_out=True)
-                for h in _scaled_joint(top, joint)
-            ]
+        firsts += _joint_holds(data, st, dict(starts[top].effect.params), top)
     if top not in starts or top in OWN_FIT_TOO:
         firsts.append(_refit_globally(data, st.fits[top]))
     if top in GUESSES_HELD:
@@ -525,6 +517,20 @@ def _torque_global_stage(data, st, verdicts, starts, top: str) -> list[Verdict]:
     g = _global_cycles(data, min(firsts, key=lambda f: f.sse))
     verdicts, kept = _kept_if_better(data, st, verdicts, {top: g})
     return _offset_alternative(data, st, verdicts, top) if kept else verdicts
+
+
+def _joint_holds(data, st, joint: dict, top: str) -> list[CandidateFit]:
+    """`top`'s global steps held at its joint estimate `joint`, and, where
+    that one fits the training runs above `SCALED_SKIP_RATIO` noise floors,
+    at `joint` scaled (`_scaled_joint`); each chooses the read-out again
+    (`_torque_global_stage`'s docstring)."""
+    held_at_joint = _refit_globally(data, st.fits[top], joint, free_read_out=True)
+    if held_at_joint.rmse <= SCALED_SKIP_RATIO * st.floor:
+        return [held_at_joint]
+    return [held_at_joint] + [
+        _refit_globally(data, st.fits[top], h, free_read_out=True)
+        for h in _scaled_joint(top, joint)
+    ]
 
 
 def _scaled_joint(name: str, joint: dict) -> list[dict[str, float]]:
