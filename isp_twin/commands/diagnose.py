@@ -328,19 +328,7 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
         f"held-out RMS error: before {diag.rmse_before / DEG:.4g} deg/s, after {diag.rmse_after / DEG:.4g} deg/s, "
         f"noise floor {diag.noise_floor / DEG:.4g} deg/s"
     )
-    t = diag.tentative_fit
-    if t is not None:
-        say(
-            f"tentative (not adopted): {', '.join(t.effects)} passed the acceptance rule "
-            f"but left the held-out error at {t.held_out_over_noise:.2f} x the noise floor "
-            f"(training runs {t.training_over_noise:.2f}; without an effect "
-            f"{t.without_over_noise:.2f} held out)"
-        )
-    if diag.equivalent:
-        say(
-            f"ambiguous: the data cannot tell {diag.selected_effect} apart from "
-            f"{', '.join(diag.equivalent)} (alike over the travelled angles, equally good held out)"
-        )
+    _set_aside_lines(diag, say)
     builtins.print(result["verdict"])
     if diag.selected_effect == "none":
         say(_none_found(diag))
@@ -358,11 +346,38 @@ def _print_diagnosis(diag, result: dict, axis: str, n_train: int, say) -> None:
             )
 
 
+def _set_aside_lines(diag, say) -> None:
+    """What the answer leaves out: tentative effects, a sub-sample delay read
+    as the gyro's averaging, effects the data cannot tell apart."""
+    t = diag.tentative_fit
+    if t is not None:
+        say(
+            f"tentative (not adopted): {', '.join(t.effects)} passed the acceptance rule "
+            f"but left the held-out error at {t.held_out_over_noise:.2f} x the noise floor "
+            f"(training runs {t.training_over_noise:.2f}; without an effect "
+            f"{t.without_over_noise:.2f} held out)"
+        )
+    if diag.delay_as_read_out is not None:
+        say(
+            f"set aside: an input delay of {diag.delay_as_read_out * 1e3:.3g} ms (under one "
+            "sample) found with the gyro read at the sample instant; read as its average over "
+            "the sample, the model without an effect fits the held-out runs at the noise and "
+            "as well (the gyro's averaging, not a delay)"
+        )
+    if diag.equivalent:
+        say(
+            f"ambiguous: the data cannot tell {diag.selected_effect} apart from "
+            f"{', '.join(diag.equivalent)} (alike over the travelled angles, equally good held out)"
+        )
+
+
 def _none_found(diag) -> str:
     """The answer `none` in words: no effect found, or none adopted where
     effects were set aside as tentative (not the same answer)."""
     if diag.tentative:
         return f"no effect adopted (tentative: {', '.join(diag.tentative)})"
+    if diag.delay_as_read_out is not None:
+        return "no missing effect found (a sub-sample input delay read as the gyro's averaging)"
     return "no missing effect found"
 
 

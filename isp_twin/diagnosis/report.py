@@ -89,6 +89,8 @@ def _none_note(diag: Diagnosis) -> str:
         return ""
     if diag.tentative:
         return f" (no effect adopted; tentative: {', '.join(diag.tentative)})"
+    if diag.delay_as_read_out is not None:
+        return " (no missing effect found; a sub-sample input delay read as the gyro's averaging)"
     return " (no missing effect found)"
 
 

@@ -206,6 +206,10 @@ class Diagnosis:
             ``resolver`` (the angle as read), or a fixed ``right``/``left``.
         explained: set where the effects were adopted though the held-out
             error stays above `CONVERGED_RATIO` (`TrainingExplained`).
+        delay_as_read_out: an input delay [s] under a sample found at the
+            point gyro reading and set aside: the averaged reading without
+            it fits the held-out runs at the noise and as well
+            (`search._delay_or_averaging`); None otherwise.
     """
 
     axis: str
@@ -229,6 +233,7 @@ class Diagnosis:
     implied_torque_offset: ImpliedOffset | None = None
     side_angle: str = "fused"
     explained: TrainingExplained | None = None
+    delay_as_read_out: float | None = None
 
     @property
     def accepted(self) -> tuple[CandidateFit, ...]:
@@ -294,6 +299,7 @@ class Diagnosis:
             "tentative_fit": None if self.tentative_fit is None else self.tentative_fit.to_json(),
             "equivalent_effects": list(self.equivalent),
             "equivalent_torque_offset": _offset_json(self.implied_torque_offset),
+            "delay_as_read_out_s": self.delay_as_read_out,
         }
 
     def _model_json(self) -> dict:

@@ -113,6 +113,7 @@ from isp_twin.estimation.simulation_error import predict_one, residuals, stack_r
 from isp_twin.estimation.verdict import CONVERGED_RATIO
 from isp_twin.identification.fit import IdentificationResult
 from isp_twin.identification.read_out import Timing, fitted_with
+from isp_twin.model.effects.input_delay import InputDelay
 from isp_twin.model.effects.torque_offset import ImpliedOffset, implied_offset
 from isp_twin.model.parameters import (
     RATE_LAYOUT,
@@ -146,6 +147,14 @@ FLIP_GAIN = 0.01
 #: removed 76-99.99 %, 9 of them over 99 %) and stop 43's clean axes 280-299
 #: (the best candidate of the two not at the noise removed 0 and 20 %).
 EXPLAINED_SHARE = 0.9
+#: An input delay adopted at the point gyro reading and shorter than this many
+#: samples is judged against the averaged reading without it
+#: (`_delay_or_averaging`): an averaging gyro lags its point value by half a
+#: sample, and a delay of a whole sample or more is more than the reading
+#: can stand for. A gate for the extra judgement, not a verdict.
+AVERAGING_DELAY_SAMPLES = 1.0
+#: The input delay's name.
+DELAY = InputDelay.name
 
 
 def diagnose(
@@ -200,7 +209,51 @@ def diagnose(
             diag = _final_diagnosis(data, params, axis, rounds, before_held, kept)
     if joint and diag.explained is not None:
         diag = _explained_read_out(diag, data, checked, params, options, before_held)
-    return diag
+    return _delay_or_averaging(diag, data, checked, params, options, before_held)
+
+
+def _delay_or_averaging(diag, data, checked, params, options, before_held) -> Diagnosis:
+    """An input delay under `AVERAGING_DELAY_SAMPLES` samples, adopted alone
+    at the point gyro reading, judged against the averaged reading without
+    it: where the model without an effect there reaches the noise held out,
+    the delay is not significant there (`round_at_read_out`) and the delay
+    model is not significantly better held out than it (`judge`), the
+    answer is that `none` (`Diagnosis.delay_as_read_out` records the delay
+    set aside); else `diag`. Not where the read-out was given (`timing`)
+    or the half-plane is not the measured angle.
+
+    A gyro that averages over the sample lags its point value by half a
+    sample, and a model read at the point takes the lag for a delay of a
+    fraction of a sample. Where the training runs are slow they cannot tell
+    the readings apart, `identify` may keep the point one, and a held-out
+    run of steps then rewards the delay: reference clean seed 455 (the
+    reference gyro averages; no delay) answered a 0.25 ms `input_delay` at
+    1.21 noise floors held out, where the model without an effect read at
+    the average reaches 1.00 (docs/diagnosis.md "Stop 79"). The two are one
+    discrete choice each; the data do not prefer the delay, so no effect
+    is reported."""
+    acc = diag.accepted
+    if len(acc) != 1 or acc[0].name != DELAY:
+        return diag
+    if diag.timing.gyro_average or data.side_source != "measured":
+        return diag
+    if acc[0].params["delay_s"] >= AVERAGING_DELAY_SAMPLES * float(np.max(data.train.dt)):
+        return diag
+    timing = replace(diag.timing, gyro_average=True)
+    there = _prepared_at(checked, options, timing)
+    start = diag.rounds[0].baseline.rate_vector
+    rnd = round_at_read_out(there, {DELAY: (start, acc[0].effects()[-1])}, tuple(there.ax.effects))
+    floor = diag.rounds[0].noise_floor
+    if rnd.selected != BASELINE or rms_of(rnd.holdout_before) > CONVERGED_RATIO * floor:
+        return diag
+    delayed = next(r for r in diag.rounds if r.selected == DELAY)
+    versus = judge(
+        DELAY, rnd.holdout_before, delayed.holdout_after, rnd.baseline.bic, acc[0].bic, floor
+    )
+    if versus.significant:
+        return diag
+    averaged = _final_diagnosis(there, params, diag.axis, [rnd], before_held)
+    return replace(averaged, delay_as_read_out=float(acc[0].params["delay_s"]))
 
 
 def _judged_again(diag, data, checked, params, options, before_held) -> Diagnosis:
