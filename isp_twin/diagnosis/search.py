@@ -22,7 +22,9 @@ first pass's effects are adopted, not converged, if the model with them fits
 the training runs at the noise and removes most of the held-out excess
 (`_explains_training`); an effect so adopted is judged again at the
 read-out `identify` chooses with it held, where that fits the training runs
-better (`_explained_read_out`).
+better (`_explained_read_out`). Last, an input delay under a sample found at
+the point gyro reading is judged against the averaged reading without it
+(`_delay_or_averaging`).
 
 Options of `diagnose`:
     max_iter: Levenberg-Marquardt iterations per fit (8: LuGre's bristle
@@ -219,8 +221,9 @@ def _delay_or_averaging(diag, data, checked, params, options, before_held) -> Di
     the delay is not significant there (`round_at_read_out`) and the delay
     model is not significantly better held out than it (`judge`), the
     answer is that `none` (`Diagnosis.delay_as_read_out` records the delay
-    set aside); else `diag`. Not where the read-out was given (`timing`)
-    or the half-plane is not the measured angle.
+    set aside); else `diag`. Not where the half-plane is not the measured
+    angle. The read-out in question is the data's, whether `diagnose` chose
+    it or was given it (the parameter file's record, `identify`'s choice).
 
     A gyro that averages over the sample lags its point value by half a
     sample, and a model read at the point takes the lag for a delay of a
