@@ -235,28 +235,29 @@ def _delay_or_averaging(diag, data, checked, params, options, before_held) -> Di
     the average reaches 1.00 (docs/diagnosis.md "Stop 79"). The two are one
     discrete choice each; the data do not prefer the delay, so no effect
     is reported."""
-    acc = diag.accepted
-    if len(acc) != 1 or acc[0].name != DELAY:
+    adopted = [r for r in diag.rounds if r.selected != BASELINE]
+    if len(adopted) != 1 or adopted[0].selected != DELAY:
         return diag
     if diag.timing.gyro_average or data.side_source != "measured":
         return diag
-    if acc[0].params["delay_s"] >= AVERAGING_DELAY_SAMPLES * float(np.max(data.train.dt)):
+    delayed, fit = adopted[0], adopted[0].model
+    delay = float(fit.params["delay_s"])
+    if delay >= AVERAGING_DELAY_SAMPLES * float(np.max(data.train.dt)):
         return diag
     timing = replace(diag.timing, gyro_average=True)
     there = _prepared_at(checked, options, timing)
     start = diag.rounds[0].baseline.rate_vector
-    rnd = round_at_read_out(there, {DELAY: (start, acc[0].effects()[-1])}, tuple(there.ax.effects))
+    rnd = round_at_read_out(there, {DELAY: (start, fit.effects()[-1])}, tuple(there.ax.effects))
     floor = diag.rounds[0].noise_floor
     if rnd.selected != BASELINE or rms_of(rnd.holdout_before) > CONVERGED_RATIO * floor:
         return diag
-    delayed = next(r for r in diag.rounds if r.selected == DELAY)
     versus = judge(
-        DELAY, rnd.holdout_before, delayed.holdout_after, rnd.baseline.bic, acc[0].bic, floor
+        DELAY, rnd.holdout_before, delayed.holdout_after, rnd.baseline.bic, fit.bic, floor
     )
     if versus.significant:
         return diag
     averaged = _final_diagnosis(there, params, diag.axis, [rnd], before_held)
-    return replace(averaged, delay_as_read_out=float(acc[0].params["delay_s"]))
+    return replace(averaged, delay_as_read_out=delay)
 
 
 def _judged_again(diag, data, checked, params, options, before_held) -> Diagnosis:
