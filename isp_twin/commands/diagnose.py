@@ -372,13 +372,9 @@ def _set_aside_lines(diag, say) -> None:
 
 
 def _none_found(diag) -> str:
-    """The answer `none` in words: no effect found, or none adopted where
-    effects were set aside as tentative (not the same answer)."""
-    if diag.tentative:
-        return f"no effect adopted (tentative: {', '.join(diag.tentative)})"
-    if diag.delay_as_read_out is not None:
-        return "no missing effect found (a sub-sample input delay read as the gyro's averaging)"
-    return "no missing effect found"
+    """The answer `none` in words (`Diagnosis.none_words`), for the text."""
+    what, why = diag.none_words()
+    return what if why is None else f"{what} ({why})"
 
 
 def _write_outputs(

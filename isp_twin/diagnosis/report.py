@@ -84,14 +84,11 @@ def _fmt(x: float) -> str:
 
 
 def _none_note(diag: Diagnosis) -> str:
-    """After a `none`: no effect found, or the tentative effects set aside."""
+    """After a `none`: its words (`Diagnosis.none_words`), for the headline."""
     if diag.selected_effect != BASELINE:
         return ""
-    if diag.tentative:
-        return f" (no effect adopted; tentative: {', '.join(diag.tentative)})"
-    if diag.delay_as_read_out is not None:
-        return " (no missing effect found; a sub-sample input delay read as the gyro's averaging)"
-    return " (no missing effect found)"
+    what, why = diag.none_words()
+    return f" ({what})" if why is None else f" ({what}; {why})"
 
 
 def write_report(diag: Diagnosis, path: Path, params_out: Path | None = None) -> Path:

@@ -239,6 +239,20 @@ class Diagnosis:
     def accepted(self) -> tuple[CandidateFit, ...]:
         return tuple(r.model for r in self.rounds if r.selected != BASELINE)
 
+    def none_words(self) -> tuple[str, str | None]:
+        """The answer `none` in words, (what, why or None): no effect found,
+        no effect adopted where effects were set aside as tentative (not the
+        same answer), or none found where a sub-sample delay was read as the
+        gyro's averaging. The text and the report word it each their way."""
+        if self.tentative:
+            return "no effect adopted", f"tentative: {', '.join(self.tentative)}"
+        if self.delay_as_read_out is not None:
+            return (
+                "no missing effect found",
+                "a sub-sample input delay read as the gyro's averaging",
+            )
+        return "no missing effect found", None
+
     @property
     def selected_effect(self) -> str:
         """The first accepted effect, or ``none``."""
