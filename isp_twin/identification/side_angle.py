@@ -30,6 +30,7 @@ __all__ = [
     "at_boundary",
     "resolver_step",
     "zero_cell_anchors",
+    "reading_anchors",
     "regime_visits",
 ]
 
@@ -61,10 +62,14 @@ def fused_angle(
     interval may just exclude 0 and the correction moves the fused angle by
     1e-6 rad, which flipped the side of one sample at a start from rest at 0.
 
-    With `anchored`, in the zero reading the angle carried from the edges
-    where the reading entered or left it (`zero_cell_anchors`) replaces the
-    fusion's level; without, the fusion alone (what an effect that deflects
-    the gyro from the resolver's side needs, `with_side_angle`).
+    With `anchored`, the angle carried from the edges where the reading
+    entered or left each reading (`reading_anchors`) is weighed with the
+    fusion's by their variances (`fusion_level_variance`: the fusion's level
+    is the mean of the quantization over its window, exact to a fraction of
+    a step at a rest, fine where the motion crosses many steps in the
+    window) and kept within the reading's half step; without, the fusion
+    alone (what an effect that deflects the gyro from the resolver's side
+    needs, `with_side_angle`).
     """
     omega = data.omega
     fused = _fused(omega, data, window)
@@ -75,8 +80,36 @@ def fused_angle(
             omega, fused = est.corrected(data.omega), corrected
     if not anchored:
         return fused
-    at, _ = zero_cell_anchors(data, omega)
-    return np.where(np.isfinite(at), at, fused)
+    at, sd = reading_anchors(data, omega)
+    known = np.isfinite(at)
+    if not known.any():
+        return fused
+    step = resolver_step(data.angle)
+    v_fused = fusion_level_variance(data, step, window)[known]
+    share = v_fused / (v_fused + sd[known] ** 2)  # the anchor's weight
+    out = fused.copy()
+    out[known] = fused[known] + share * (at[known] - fused[known])
+    half = step / 2.0
+    out[known] = np.clip(out[known], data.angle[known] - half, data.angle[known] + half)
+    return out
+
+
+def fusion_level_variance(data: MeasuredData, step: float, window: int = FUSION_WINDOW):
+    """Variance of the fused angle's level [rad^2], shape (N,): the mean of
+    the quantization errors (uniform over a step, ``step^2 / 12`` each) over
+    the centred window, those of one visit to a reading taken as one error
+    (a rest repeats its error, a motion across many steps averages them
+    out), plus the integrated gyro noise's (`fusion_noise`). Each sample
+    counts its visit's length, at most the window: the window's sum of
+    those over the window's length squared is the share of one error's
+    variance left in the mean."""
+    n = data.angle.shape[0]
+    w = _odd_window(window, n)
+    bounds = np.concatenate(([0], np.flatnonzero(np.diff(data.angle)) + 1, [n]))
+    lengths = np.repeat(np.minimum(np.diff(bounds), w), np.diff(bounds)).astype(float)
+    padded = np.pad(lengths, w // 2, mode="edge")
+    shared = np.convolve(padded, np.ones(w), mode="valid") / float(w) ** 2
+    return step**2 / 12.0 * shared + fusion_noise(data, window) ** 2
 
 
 #: Largest motion over the sample of a crossing, as a share of the
@@ -115,9 +148,7 @@ def resolver_step(angle: np.ndarray) -> float | None:
 
 
 def zero_cell_anchors(data: MeasuredData, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The angle [rad] inside each visit to the zero reading, carried by the
-    integrated rate from the edges where the reading entered and left it,
-    and its standard deviation [rad], shape (N,) each; NaN where no edge anchors it.
+    """`reading_anchors` inside the visits to the zero reading alone (NaN elsewhere).
 
     The sign of the angle in the zero reading is the side, and the reading
     does not give it. The fusion's level there is the mean of the
@@ -125,59 +156,80 @@ def zero_cell_anchors(data: MeasuredData, omega: np.ndarray) -> tuple[np.ndarray
     by a fraction of a step: on reference clean axis 328 the fused angle
     stood 0.002 deg below the truth at a rest at +0.004 deg, and the truth's
     held-out error was 1.52 noise floors, all of it at that rest and the
-    crossings beside it (docs/identification.md "Stop 49"). An edge is
-    exact: the reading changes where the angle passes half a step (a
-    resolver that rounds to the nearest step, as the reference's and the
-    twin's; the fusion assumes the same), within the motion over that
-    sample (`_edges`). On each side of the visit the nearest edges
+    crossings beside it (docs/identification.md "Stop 49"). The boundary
+    rule reads the side's uncertainty there (`_sign_unknown`).
+    """
+    return reading_anchors(data, omega, zero_only=True)
+
+
+def reading_anchors(
+    data: MeasuredData, omega: np.ndarray, zero_only: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """The angle [rad] inside each visit to a reading, carried by the
+    integrated rate from the edges where the reading entered and left it,
+    and its standard deviation [rad], shape (N,) each; NaN where no edge
+    anchors it (or, with `zero_only`, outside the zero reading).
+
+    An edge is exact: the reading changes where the angle passes half a
+    step (a resolver that rounds to the nearest step, as the reference's
+    and the twin's; the fusion assumes the same), within the motion over
+    that sample (`_edges`). On each side of the visit the nearest edges
     intersect their intervals (`_offset_at`); the two sides' anchors are
     weighed by their variances (the interval's width, uniform, and the
     integrated gyro noise since) and must agree within four deviations,
-    else the visit keeps the fusion.
+    else the visit keeps the fusion. The result is clipped to the reading's
+    half step. Inside any reading, not the zero one alone: a torque of the
+    angle (cogging of a 0.05 rad period) turns the fusion's level error, up
+    to a fraction of a step at a rest, into a drive error; reference
+    cogging axis 471 with its true parameters stood at 2.59 noise floors on
+    a training run with the fusion's level, 0.99 with the true angle
+    (docs/identification.md "Stop 80"). A run that opens in the zero
+    reading opens at rest there, and the rules of stop 41 read its side
+    (`at_boundary`'s opening; Eq. 6 stepped once per sample keeps the
+    fusion's): anchored too, the shipped twin model's inner_el R+ breakaway
+    went from 2.197 (truth 2.194) to 5.49 (models/params/twin_identified.sh).
     """
     n = omega.shape[0]
     est, sd = np.full(n, np.nan), np.full(n, np.nan)
     step = resolver_step(data.angle)
-    zero = data.angle == 0.0
-    if step is None or not zero.any():
+    if step is None or (zero_only and not np.any(data.angle == 0.0)):
         return est, sd
     integral = np.cumsum(omega) * data.dt
     walk = noise_floor_of([omega], SCALE_DIFFERENCE) * data.dt  # per-sample deviation
     edges = _edges(data.angle, integral, step)
-    bounds = np.flatnonzero(np.diff(np.concatenate(([0], zero.astype(np.int8), [0]))))
-    for lo, hi in zip(bounds[::2], bounds[1::2]):
-        if lo == 0:
-            # A run that opens in the zero reading opens at rest there, and
-            # the rules of stop 41 read its side (`at_boundary`'s opening;
-            # Eq. 6 stepped once per sample keeps the fusion's): anchored
-            # too, the shipped twin model's inner_el R+ breakaway went from
-            # 2.197 (truth 2.194) to 5.49 (models/params/twin_identified.sh).
-            continue
-        ks = np.arange(lo, hi)
-        anchors = []
-        for at, before in ((lo, True), (hi - 1, False)):
-            c = _offset_at(edges, at, before, walk)
-            if c is not None:
-                distance = ks - lo + 1 if before else hi - ks
-                var = (c[1] - c[0]) ** 2 / 12.0 + walk**2 * distance
-                anchors.append((integral[ks] + 0.5 * (c[0] + c[1]), var))
-        if not anchors:
-            continue
-        if len(anchors) == 2:
-            (a1, v1), (a2, v2) = anchors
-            if abs(a1[0] - a2[0]) > 4.0 * np.sqrt(v1[0] + v2[0]):
-                continue
-            var = 1.0 / (1.0 / v1 + 1.0 / v2)
-            at = var * (a1 / v1 + a2 / v2)
-        else:
-            at, var = anchors[0]
-        est[lo:hi] = np.clip(at, -step / 2.0, step / 2.0)
-        sd[lo:hi] = np.sqrt(var)
+    bounds = np.concatenate(([0], np.flatnonzero(np.diff(data.angle)) + 1, [n]))
+    lo, hi = bounds[:-1], bounds[1:]
+    level = data.angle[lo]
+    keep = (lo != 0) | (level != 0.0)
+    if zero_only:
+        keep &= level == 0.0
+    visit = np.repeat(np.arange(lo.size), hi - lo)
+    k = np.arange(n)
+    sides = []
+    for c, distance in (
+        (_offset_at(edges, lo, True, walk), k - lo[visit] + 1),
+        (_offset_at(edges, hi - 1, False, walk), hi[visit] - k),
+    ):
+        width = (c[1] - c[0])[visit]
+        sides.append((integral + 0.5 * (c[0] + c[1])[visit], width**2 / 12.0 + walk**2 * distance))
+    (a1, v1), (a2, v2) = sides
+    one, two = np.isfinite(a1), np.isfinite(a2)
+    both = one & two
+    # The two sides must agree at the visit's first sample.
+    apart = np.abs(a1[lo] - a2[lo]) > 4.0 * np.sqrt(v1[lo] + v2[lo])
+    keep &= ~(both[lo] & apart)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var = np.where(both, 1.0 / (1.0 / v1 + 1.0 / v2), np.where(one, v1, v2))
+        at = np.where(both, var * (a1 / v1 + a2 / v2), np.where(one, a1, a2))
+    used = keep[visit] & (one | two)
+    half = step / 2.0
+    est[used] = np.clip(at[used], data.angle[used] - half, data.angle[used] + half)
+    sd[used] = np.sqrt(var[used])
     return est, sd
 
 
-#: Edges on each side of a visit to the zero reading whose intervals
-#: `zero_cell_anchors` intersects, and how far they may lie [samples].
+#: Edges on each side of a visit to a reading whose intervals
+#: `reading_anchors` intersects, and how far they may lie [samples].
 EDGES_PER_SIDE = 3
 EDGE_REACH = FUSION_WINDOW
 
@@ -197,28 +249,34 @@ def _edges(angle: np.ndarray, integral: np.ndarray, step: float) -> tuple[np.nda
     return j, np.minimum(a, b), np.maximum(a, b)
 
 
-def _offset_at(edges, at: int, before: bool, walk: float) -> tuple[float, float] | None:
-    """The interval of the offset c at sample `at` from the nearest
-    `EDGES_PER_SIDE` edges at or before it (``before``) or after it, within
-    `EDGE_REACH` samples: each widened by four deviations of the integrated
-    noise between it and `at`, intersected from the nearest out while they
-    agree; None where there is no edge."""
+def _offset_at(edges, at: np.ndarray, before: bool, walk: float) -> tuple[np.ndarray, np.ndarray]:
+    """The interval (lo, hi) of the offset c at each sample of `at` from the
+    nearest `EDGES_PER_SIDE` edges at or before it (``before``) or after
+    it, within `EDGE_REACH` samples: each widened by four deviations of the
+    integrated noise between it and `at`, intersected from the nearest out
+    while they agree; NaN where there is no edge."""
     j, c_lo, c_hi = edges
-    if before:
-        pick = np.flatnonzero((j <= at) & (j > at - EDGE_REACH))[::-1]
-    else:
-        pick = np.flatnonzero((j > at) & (j <= at + EDGE_REACH))
-    out = None
-    for i in pick[:EDGES_PER_SIDE]:
-        widen = 4.0 * walk * np.sqrt(abs(at - j[i]) + 1)
-        lo, hi = c_lo[i] - widen, c_hi[i] + widen
-        if out is None:
-            out = (c_lo[i], c_hi[i])
-        elif max(lo, out[0]) < min(hi, out[1]):
-            out = (max(lo, out[0]), min(hi, out[1]))
-        else:
-            break
-    return out
+    out_lo, out_hi = np.full(at.shape, np.nan), np.full(at.shape, np.nan)
+    if j.size == 0:
+        return out_lo, out_hi
+    first = np.searchsorted(j, at, side="right")  # the first edge after `at`
+    going = np.ones(at.shape, dtype=bool)  # the intersection goes on
+    for nth in range(EDGES_PER_SIDE):
+        i = first - 1 - nth if before else first + nth
+        valid = going & (i >= 0) & (i < j.size)
+        i = np.clip(i, 0, j.size - 1)
+        distance = np.abs(at - j[i])
+        valid &= (distance < EDGE_REACH) if before else (distance <= EDGE_REACH)
+        if nth == 0:
+            out_lo[valid], out_hi[valid] = c_lo[i[valid]], c_hi[i[valid]]
+            going = valid
+            continue
+        widen = 4.0 * walk * np.sqrt(distance + 1.0)
+        lo = np.maximum(c_lo[i] - widen, out_lo)
+        hi = np.minimum(c_hi[i] + widen, out_hi)
+        going = valid & (lo < hi)
+        out_lo[going], out_hi[going] = lo[going], hi[going]
+    return out_lo, out_hi
 
 
 def fusion_noise(data: MeasuredData, window: int = FUSION_WINDOW) -> float:
