@@ -5,9 +5,10 @@ angle the model is driven by into a drive error. The fusion's level (the
 mean of the quantization over its window) is a fraction of a step off at a
 rest; the edges where the reading entered and left the reading the axis
 rests in are exact to the motion over that sample, and the integrated rate
-carries them to the rest (`isp_twin.identification.side_angle.reading_anchors`,
-weighed with the fusion by `fusion_level_variance`; docs/identification.md
-"Stop 80"). Data from the reference simulator, which shares no code with
+carries them to the rest (`isp_twin.identification.side_angle.anchored_angle`:
+`reading_anchors` weighed with the fusion by `fusion_level_variance`; the
+model's torques of the angle read it, `RunStack.torque_angle`;
+docs/identification.md "Stop 80"). Data from the reference simulator, which shares no code with
 the model.
 """
 
@@ -21,6 +22,7 @@ from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.identification.side_angle import (
     FUSION_WINDOW,
+    anchored_angle,
     fused_angle,
     fusion_level_variance,
     fusion_noise,
@@ -63,12 +65,12 @@ def test_at_rest_inside_a_reading_the_angle_is_the_true_one_to_a_tenth_of_a_step
         data, r = _run(seed)
         rest = (r.regime < 0) & (r.theta != 0.0)
         assert rest.mean() > 0.2, seed  # the case exists
-        anchored = np.abs(fused_angle(data) - r.angle)[rest]
-        plain = np.abs(fused_angle(data, anchored=False) - r.angle)[rest]
+        anchored = np.abs(anchored_angle(data) - r.angle)[rest]
+        fused = np.abs(fused_angle(data) - r.angle)[rest]
         assert anchored.max() < 0.1 * LSB, (seed, anchored.max() / LSB)
-        # The fusion alone: its level is a fraction of a step off at a rest
-        # (0.4 steps at the code before stop 80).
-        assert plain.max() > 0.2 * LSB, (seed, plain.max() / LSB)
+        # The side angle's fusion (anchored in the zero reading alone): its
+        # level is a fraction of a step off at these rests (0.4 steps).
+        assert fused.max() > 0.2 * LSB, (seed, fused.max() / LSB)
 
 
 def test_the_true_cogging_axis_reaches_the_noise():

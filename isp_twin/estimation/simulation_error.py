@@ -27,7 +27,12 @@ from isp_twin.model.effects import effect_class
 from isp_twin.model.effects.base import true_rates
 from isp_twin.model.effects.batched import make_batched
 from isp_twin.model.parameters import EffectSpec, RateParams
-from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration, simulate_substeps
+from isp_twin.model.substep_model import (
+    DEFAULT_INTEGRATION,
+    Integration,
+    is_torque,
+    simulate_substeps,
+)
 
 __all__ = [
     "DIVERGED",
@@ -95,6 +100,10 @@ class RunStack:
             fusion alone, without the zero reading's edge anchors (R, N)
             [rad], for rows with an effect that deflects the gyro from the
             motor side (`_side_angles`); None: the same as ``angle``.
+        torque_angle: where ``angle`` is the fused one, the angle a torque
+            of the angle reads (R, N) [rad]
+            (`isp_twin.identification.side_angle.torque_angle`: anchored in
+            every reading); None: ``angle``.
     """
 
     names: tuple[str, ...]
@@ -114,6 +123,7 @@ class RunStack:
     deflection_rate: np.ndarray | None = None
     angle_step: np.ndarray | None = None
     angle_plain: np.ndarray | None = None
+    torque_angle: np.ndarray | None = None
 
     @property
     def n_samples(self) -> int:
@@ -230,30 +240,32 @@ def stack_runs(
             omega[i, 0] = 0.0
     names = tuple(r.name for r in runs)
     stacked = (names, u, omega, angle, mask, dt, side, gyro_average, integration, first, levels)
-    known, accel, plain = _resolver_columns(runs, shape, angle)
+    known, accel, plain, torque = _resolver_columns(runs, shape, angle)
     fused = known is not None
     follows = fused if side_follows_gyro is None else side_follows_gyro
     slip, steps = _deflection_rates(runs, shape, dt)
-    return RunStack(*stacked, follows, known, accel, slip, steps, plain)
+    return RunStack(*stacked, follows, known, accel, slip, steps, plain, torque)
 
 
 def _resolver_columns(runs: Sequence, shape: tuple[int, int], angle: np.ndarray) -> tuple:
-    """`RunStack`'s resolver_side, fusion_accel and angle_plain (``angle``,
-    the stacked side angles, where a run has no plain one), from the runs
-    that carry the fused angle with the resolver's beside it
-    (`side_angle.with_side_angle`); three Nones where none does."""
+    """`RunStack`'s resolver_side, fusion_accel, angle_plain and torque_angle
+    (``angle``, the stacked side angles, where a run has no plain or torque
+    one), from the runs that carry the fused angle with the resolver's
+    beside it (`side_angle.with_side_angle`); four Nones where none does."""
     if all(getattr(r, "resolver", None) is None for r in runs):
-        return None, None, None
-    known, accel, plain = np.zeros(shape, dtype=np.int8), np.zeros(shape), angle.copy()
+        return None, None, None, None
+    known, accel = np.zeros(shape, dtype=np.int8), np.zeros(shape)
+    plain, torque = angle.copy(), angle.copy()
     for i, r in enumerate(runs):
         if getattr(r, "resolver", None) is not None:
             m = len(r.u)
             known[i, :m] = resolver_sides(r.resolver)
             accel[i, :m] = r.fusion_accel
-            if getattr(r, "fusion_plain", None) is not None:
-                plain[i, :m] = r.fusion_plain
-                plain[i, m:] = r.fusion_plain[-1]
-    return known, accel, plain
+            for out, given in ((plain, r.fusion_plain), (torque, r.torque_angle)):
+                if given is not None:
+                    out[i, :m] = given
+                    out[i, m:] = given[-1]
+    return known, accel, plain, torque
 
 
 def _deflection_rates(
@@ -359,7 +371,7 @@ def predict(
                 spec.name, {k: np.full(p * r, v) for k, v in spec.params.items()}, stack.dt
             )
         )
-    angle, resolver_side = _side_angles(stack, batch, p)
+    angle, resolver_side, torque = _side_angles(stack, batch, p)
     resp = simulate_substeps(
         RateParams.from_vector(rows),
         np.tile(stack.u, (p, 1)),
@@ -373,29 +385,37 @@ def predict(
         gyro_average=stack.gyro_average,
         side_follows_gyro=stack.side_follows_gyro,
         resolver_side=resolver_side,
+        torque_angle=torque,
     )
     return _diverged_held(resp).mapped(lambda a: a.reshape(p, r, n))
 
 
 def _side_angles(stack: RunStack, effects: Sequence, p: int):
-    """The angle choosing the half-plane per row (P*R, N) and the resolver's
-    sides (or None). The stack's angle; where it is the fused one and an
-    effect deflects the gyro from the motor side, plus what the fusion's
-    smoothing took off that deflection (`Effect.fusion_gain`), with the
-    sides the resolver settles. Rows without such an effect need neither.
-    Rows with one take the fusion alone (`RunStack.angle_plain`): the zero
-    reading's edge anchors assume a gyro on the motor side."""
+    """The angle choosing the half-plane per row (P*R, N), the resolver's
+    sides (or None) and the angle a torque of the angle reads (or None:
+    the side angle). The stack's angles; where they are the fused ones and
+    an effect deflects the gyro from the motor side, the side angle plus
+    what the fusion's smoothing took off that deflection
+    (`Effect.fusion_gain`), with the sides the resolver settles, and the
+    torques read that angle too. Rows without such an effect need neither.
+    Rows with one take the fusion alone (`RunStack.angle_plain`): the edge
+    anchors assume a gyro on the motor side."""
     angle = np.tile(stack.angle, (p, 1))
+    torque = None
+    if stack.torque_angle is not None and any(is_torque(e) for e in effects):
+        torque = np.tile(stack.torque_angle, (p, 1))
     gains = [g for g in (e.fusion_gain() for e in effects) if np.ndim(g)]
     if stack.fusion_accel is None or not stack.side_follows_gyro or not gains:
-        return angle, None
+        return angle, None, torque
+    deflected = np.any([np.asarray(g) != 0.0 for g in gains], axis=0)
     if stack.angle_plain is not None:
-        deflected = np.any([np.asarray(g) != 0.0 for g in gains], axis=0)
         angle[deflected] = np.tile(stack.angle_plain, (p, 1))[deflected]
     accel = np.tile(stack.fusion_accel, (p, 1))
     for gain in gains:
         angle += gain[:, None] * accel
-    return angle, np.tile(stack.resolver_side, (p, 1))
+    if torque is not None:
+        torque[deflected] = angle[deflected]
+    return angle, np.tile(stack.resolver_side, (p, 1)), torque
 
 
 def _diverged_held(resp):

@@ -156,6 +156,8 @@ class MeasuredData:
         fusion_plain: there, the side angle of the fusion alone [rad],
             without the zero reading's edge anchors (for an effect that
             deflects the gyro from the resolver's side), else None.
+        torque_angle: there, the angle a torque of the angle reads [rad]
+            (`isp_twin.identification.side_angle.torque_angle`), else None.
     """
 
     name: str
@@ -168,6 +170,7 @@ class MeasuredData:
     resolver: np.ndarray | None = None
     fusion_accel: np.ndarray | None = None
     fusion_plain: np.ndarray | None = None
+    torque_angle: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])

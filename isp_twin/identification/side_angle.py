@@ -31,6 +31,8 @@ __all__ = [
     "resolver_step",
     "zero_cell_anchors",
     "reading_anchors",
+    "anchored_angle",
+    "torque_angle",
     "regime_visits",
 ]
 
@@ -62,24 +64,40 @@ def fused_angle(
     interval may just exclude 0 and the correction moves the fused angle by
     1e-6 rad, which flipped the side of one sample at a start from rest at 0.
 
-    With `anchored`, the angle carried from the edges where the reading
-    entered or left each reading (`reading_anchors`) is weighed with the
-    fusion's by their variances (`fusion_level_variance`: the fusion's level
-    is the mean of the quantization over its window, exact to a fraction of
-    a step at a rest, fine where the motion crosses many steps in the
-    window) and kept within the reading's half step; without, the fusion
-    alone (what an effect that deflects the gyro from the resolver's side
-    needs, `with_side_angle`).
+    With `anchored`, in the zero reading the angle carried from the edges
+    where the reading entered or left it (`zero_cell_anchors`) replaces the
+    fusion's level; without, the fusion alone (what an effect that deflects
+    the gyro from the resolver's side needs, `with_side_angle`). The angle
+    a torque of the angle reads is `anchored_angle`.
     """
-    omega = data.omega
-    fused = _fused(omega, data, window)
-    est = reading_error(data)
-    if est is not None:
-        corrected = _fused(est.corrected(data.omega), data, window)
-        if np.max(np.abs(corrected - fused)) > 4.0 * fusion_noise(data, window):
-            omega, fused = est.corrected(data.omega), corrected
+    omega, fused = _corrected_fusion(data, window)
     if not anchored:
         return fused
+    at, _ = zero_cell_anchors(data, omega)
+    return np.where(np.isfinite(at), at, fused)
+
+
+def anchored_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:
+    """The angle a torque of the angle reads [rad], shape (N,): the fused
+    angle (`fused_angle`, the reading corrected the same way) weighed, in
+    every reading, with the angle the edges where the reading entered and
+    left it carry (`reading_anchors`), by their variances
+    (`fusion_level_variance`: the fusion's level is the mean of the
+    quantization over its window, a fraction of a step off at a rest, sharp
+    where the motion crosses many steps within the window; an edge is as
+    sharp as the motion over its sample), and kept within the reading's
+    half step.
+
+    A cogging of a 0.05 rad period as strong as the Coulomb levels turns
+    1e-4 rad into a drive error of several noise floors on a 5 ms axis:
+    reference cogging 471 with its true parameters stood at 2.59 noise
+    floors on a training run at the fusion's level, 1.07 at this angle
+    (docs/identification.md "Stop 80"). The side of each step keeps
+    `side_angle`: anchored everywhere, it moved no side but the crossings'
+    parts of a sample, and two global refits of LuGre axes (reference 337
+    and 428, whose pinned tests then failed) ended in other basins.
+    """
+    omega, fused = _corrected_fusion(data, window)
     at, sd = reading_anchors(data, omega)
     known = np.isfinite(at)
     if not known.any():
@@ -92,6 +110,19 @@ def fused_angle(
     half = step / 2.0
     out[known] = np.clip(out[known], data.angle[known] - half, data.angle[known] + half)
     return out
+
+
+def _corrected_fusion(data: MeasuredData, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rate reading the fusion integrates (corrected for a gyro error
+    where that moves the fused angle, `fused_angle`) and the fused angle."""
+    omega = data.omega
+    fused = _fused(omega, data, window)
+    est = reading_error(data)
+    if est is not None:
+        corrected = _fused(est.corrected(data.omega), data, window)
+        if np.max(np.abs(corrected - fused)) > 4.0 * fusion_noise(data, window):
+            omega, fused = est.corrected(data.omega), corrected
+    return omega, fused
 
 
 def fusion_level_variance(data: MeasuredData, step: float, window: int = FUSION_WINDOW):
@@ -204,15 +235,7 @@ def reading_anchors(
     if zero_only:
         keep &= level == 0.0
     visit = np.repeat(np.arange(lo.size), hi - lo)
-    k = np.arange(n)
-    sides = []
-    for c, distance in (
-        (_offset_at(edges, lo, True, walk), k - lo[visit] + 1),
-        (_offset_at(edges, hi - 1, False, walk), hi[visit] - k),
-    ):
-        width = (c[1] - c[0])[visit]
-        sides.append((integral + 0.5 * (c[0] + c[1])[visit], width**2 / 12.0 + walk**2 * distance))
-    (a1, v1), (a2, v2) = sides
+    (a1, v1), (a2, v2) = _carried(edges, integral, lo, hi, visit, walk)
     one, two = np.isfinite(a1), np.isfinite(a2)
     both = one & two
     # The two sides must agree at the visit's first sample.
@@ -226,6 +249,21 @@ def reading_anchors(
     est[used] = np.clip(at[used], data.angle[used] - half, data.angle[used] + half)
     sd[used] = np.sqrt(var[used])
     return est, sd
+
+
+def _carried(edges, integral, lo, hi, visit, walk: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per sample (N,), the angle carried from the edges before its visit
+    to a reading (lo..hi-1; `visit`: each sample's) and its variance, and
+    the same from the edges after it; NaN where no edge anchors it."""
+    k = np.arange(integral.shape[0])
+    sides = []
+    for c, distance in (
+        (_offset_at(edges, lo, True, walk), k - lo[visit] + 1),
+        (_offset_at(edges, hi - 1, False, walk), hi[visit] - k),
+    ):
+        width = (c[1] - c[0])[visit]
+        sides.append((integral + 0.5 * (c[0] + c[1])[visit], width**2 / 12.0 + walk**2 * distance))
+    return sides
 
 
 #: Edges on each side of a visit to a reading whose intervals
@@ -454,11 +492,37 @@ def with_side_angle(
     (docs/identification.md "Stop 49")."""
     angle = side_angle(data, side_source, shift, opening)
     if side_source != "measured":
-        return replace(data, angle=angle, resolver=None, fusion_accel=None, fusion_plain=None)
+        return replace(
+            data,
+            angle=angle,
+            resolver=None,
+            fusion_accel=None,
+            fusion_plain=None,
+            torque_angle=None,
+        )
     plain = side_angle(data, side_source, shift, opening, anchored=False)
     # At rest on the boundary (`at_boundary`) the side angle is 0, not fused.
     accel = np.where(plain == 0.0, 0.0, window_accel(data))
-    return replace(data, angle=angle, resolver=data.angle, fusion_accel=accel, fusion_plain=plain)
+    return replace(
+        data,
+        angle=angle,
+        resolver=data.angle,
+        fusion_accel=accel,
+        fusion_plain=plain,
+        torque_angle=torque_angle(data, shift, opening),
+    )
+
+
+def torque_angle(data: MeasuredData, shift: float = 0.0, opening: bool = False) -> np.ndarray:
+    """The angle a torque of the angle reads in each step [rad], shape (N,):
+    `anchored_angle` at sample ``k + shift`` as `side_angle` reads the fused
+    one, 0 where that puts the axis on the boundary (`at_boundary`)."""
+    y = anchored_angle(data)
+    y[at_boundary(data, fused_angle(data), opening=opening)] = 0.0
+    if shift == 0.0:
+        return y
+    k = np.arange(y.size, dtype=float)
+    return np.interp(k + shift, k, y)
 
 
 def window_accel(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarray:

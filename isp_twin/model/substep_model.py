@@ -82,7 +82,7 @@ from isp_twin.model.friction_compiled import law_probe_cases, python_law
 from isp_twin.model.parameters import RateParams
 from isp_twin.vocabulary import check_side
 
-__all__ = ["Integration", "EQ6", "DEFAULT_INTEGRATION", "simulate_substeps"]
+__all__ = ["Integration", "EQ6", "DEFAULT_INTEGRATION", "simulate_substeps", "is_torque"]
 
 
 #: Bits of the kernel's ``split`` mask (`Integration.kernel_flags`).
@@ -898,6 +898,7 @@ def simulate_substeps(
     gyro_average: bool = False,
     side_follows_gyro: bool = False,
     resolver_side: np.ndarray | None = None,
+    torque_angle: np.ndarray | None = None,
 ) -> AxisResponse:
     """Simulate the sub-stepped Eq. 6 for a batch of parameter sets.
 
@@ -907,8 +908,7 @@ def simulate_substeps(
         dt: sample period T [s].
         omega0: rate at sample 0 [rad/s], float or (P,).
         angle0: angle at sample 0 [rad], float or (P,).
-        angle_measured: (N,) or (P, N) angle [rad] choosing the half-plane
-            (teacher forcing); None: the model's own angle.
+        angle_measured: (N,) or (P, N) angle [rad] choosing the half-plane; None: the model's.
         effects: extra effects (reset here), parameters floats or arrays (P,).
         side: fix the half-plane (`SIDE_R` or `SIDE_L`) whatever the angle.
         integration: sub-steps and options (`Integration`).
@@ -916,11 +916,11 @@ def simulate_substeps(
         side_follows_gyro: `angle_measured` follows the gyro (`RunStack`).
         resolver_side: (P, N) int8, per step the side the resolver settles
             (+1 R, -1 L, 0 open; `RunStack.resolver_side`), or None.
+        torque_angle: (N,) or (P, N) angle [rad] torques of the angle read.
 
     Returns:
-        `AxisResponse` (shapes (N,) for unbatched params, else (P, N)): ``omega``
-        the gyro reading (averaged when asked, measurement effects applied),
-        ``omega_true`` the rate at the sample instants where the two differ.
+        `AxisResponse` ((N,) unbatched, else (P, N)): ``omega`` the gyro reading (averaged
+        when asked, sensor effects applied), ``omega_true`` the point rate where they differ.
     """
     _ensure_current_law()
     u = np.asarray(u, dtype=float)
@@ -935,7 +935,7 @@ def simulate_substeps(
     sfx, kstate, effects = _substep_effects(effects, n_rows, dt, m)
     args = (m, float(dt), *integration.kernel_flags())
     use_side = 0 if angle_measured is None else SIDE_FOLLOWS_GYRO if side_follows_gyro else 1
-    at_y = _torque_angle(side_y, integration.midstep_angle and use_side, effects)
+    at_y = _torque_angle(side_y, torque_angle, integration.midstep_angle, use_side, effects)
     before = _effects_before_the_run(effects, u_rows, at_y, use_side, dt, m)
     commands, torques, u_eff, extra, lead = before
     if not (commands or torques):
@@ -971,18 +971,24 @@ def _state_and_outputs(n_rows: int, n: int, omega0, angle0) -> tuple[np.ndarray,
     return w, y, point, reading, angle, regime
 
 
-def _is_torque(e: Effect) -> bool:
+def is_torque(e: Effect) -> bool:
     """Whether effect `e` adds an acceleration (a torque over the inertia)."""
     return type(e).acceleration is not Effect.acceleration
 
 
-def _torque_angle(side_y: np.ndarray, midstep: bool, effects) -> np.ndarray:
-    """The measured angle the torques of step k see, (rows, N): the mean of
-    the angles at the step's ends (`Integration.midstep_angle`), else the
-    angle at its start; the last column (no step follows) as given. Without
-    a torque among `effects` nothing reads it: `side_y` itself, no copy."""
-    if not midstep or side_y.shape[-1] < 2 or not any(_is_torque(e) for e in effects):
+def _torque_angle(side_y: np.ndarray, given, midstep: bool, use_side: int, effects) -> np.ndarray:
+    """The measured angle the torques of step k see, (rows, N): the `given`
+    torque angle (`simulate_substeps`'s torque_angle) where there is one and
+    the angle is measured, else the side angle `side_y`; the mean of the
+    angles at the step's ends (`Integration.midstep_angle`), else the angle
+    at its start; the last column (no step follows) as given. Without a
+    torque among `effects` nothing reads it: `side_y` itself, no copy."""
+    if not use_side or not any(is_torque(e) for e in effects):
         return side_y
+    if given is not None:
+        side_y = np.broadcast_to(np.asarray(given, dtype=float), side_y.shape)
+    if not midstep or side_y.shape[-1] < 2:
+        return np.ascontiguousarray(side_y)
     out = side_y.copy()
     out[:, :-1] = 0.5 * (side_y[:, :-1] + side_y[:, 1:])
     return out
@@ -1087,7 +1093,7 @@ def _effects_before_the_run(effects, u_rows, side_y, use_side, dt, m):
     """
     n_rows, n = u_rows.shape
     commands = [e for e in effects if type(e).command is not Effect.command]
-    torques = [e for e in effects if _is_torque(e)]
+    torques = [e for e in effects if is_torque(e)]
     extra = np.zeros((n_rows, n))
     lead = np.zeros(n_rows)
     u_eff = u_rows
