@@ -11,7 +11,9 @@ held: this is what the library can reach at best, whatever the fit. For
 `resonance` the truth is the two-mass form (its payload fraction, integrated
 in the sub-steps: friction on the motor side) and the middle figure per run
 is the gyro-only form (the truth with ``payload_fraction`` 0, what the
-library's `resonance` was before docs/diagnosis.md "Stop 18 R").
+library's `resonance` was before docs/diagnosis.md "Stop 18 R"). The runs
+are read together, as the commands read theirs (`one_gyro_error`, since
+docs/identification.md "Stop 80").
 
     python benchmarks/truth_held.py --effects lugre,resonance --seeds 1000-1005
     python benchmarks/truth_held.py --effects none --seeds 327-330 --held-out covered
@@ -27,6 +29,7 @@ import numpy as np
 
 from isp_twin.errors import ParameterError
 from isp_twin.identification.cost import rmse
+from isp_twin.identification.gyro_error import one_gyro_error
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec, RateParams
@@ -55,9 +58,15 @@ def truth_held_row(seed: int, effect: str, held_out: str = "free") -> dict[str, 
         specs.insert(0, (gyro_only,))
     timing = Timing(0.0, truth["sensors"]["gyro_averaged"])
     out = {}
-    for name in RUNS:
-        r = exp.runs[name]
-        data = [MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])]
+    # The three runs together, as `identify` and `diagnose` read their runs.
+    runs = one_gyro_error(
+        [
+            MeasuredData(name, r.t, r.u, r.omega, r.theta, None, r.t[1] - r.t[0])
+            for name, r in ((name, exp.runs[name]) for name in RUNS)
+        ]
+    )
+    for name, run in zip(RUNS, runs):
+        data = [run]
         without = rmse(rate, data, timing=timing) / sigma
         held = [float(rmse(rate, data, effects=e, timing=timing) / sigma) for e in specs]
         out[name] = (float(without), *held)

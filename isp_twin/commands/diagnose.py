@@ -32,6 +32,7 @@ from isp_twin.estimation.coverage import (
 )
 from isp_twin.estimation.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.identification.cost import held_out_determined, model_breakaways
+from isp_twin.identification.gyro_error import fusion_note, one_gyro_error
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
@@ -295,9 +296,12 @@ def _checked_outputs(args: argparse.Namespace) -> tuple[Path, Path | None]:
 def _load_runs(args: argparse.Namespace, params):
     """The training then held-out runs, names unique, sample periods checked."""
     mapping = mapping_from_args(args)
-    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.holdout]])
+    runs = one_gyro_error(
+        unique_names([load_measured(p, mapping) for p in [*args.data, *args.holdout]])
+    )
     check_sample_budget(runs, args)
-    for line in check_sample_period(runs, params.sample_time_s, str(params.path or params.name)):
+    periods = check_sample_period(runs, params.sample_time_s, str(params.path or params.name))
+    for line in [*periods, *fusion_note(runs)]:
         print(line)
     return runs
 

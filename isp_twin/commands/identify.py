@@ -18,6 +18,7 @@ from isp_twin.commands.data_options import (
 )
 from isp_twin.errors import ParameterError
 from isp_twin.identification.fit import Settings, identify, to_axis_params
+from isp_twin.identification.gyro_error import fusion_note, one_gyro_error
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.report import identification_verdict, result_json, write_report
 from isp_twin.identification.side_angle import SIDE_SOURCES
@@ -180,14 +181,16 @@ def _check_options(args) -> None:
 def _load_runs(args, prior_path: Path):
     """(training runs, validation runs, prior set, its axis), sample periods checked."""
     mapping = mapping_from_args(args)
-    runs = unique_names([load_measured(p, mapping) for p in [*args.data, *args.validate]])
+    runs = one_gyro_error(
+        unique_names([load_measured(p, mapping) for p in [*args.data, *args.validate]])
+    )
     check_sample_budget(runs, args)
     train, validation = runs[: len(args.data)], runs[len(args.data) :]
     prior_set = load_parameters(prior_path)
     prior = prior_set.axis(args.axis)
     periods = check_sample_period(
         train + validation, prior_set.sample_time_s, str(prior_set.path or prior_set.name)
-    )
+    ) + fusion_note(runs)
     if not args.quiet:
         for line in periods:
             print(line)

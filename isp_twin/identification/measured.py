@@ -158,6 +158,10 @@ class MeasuredData:
             deflects the gyro from the resolver's side), else None.
         torque_angle: there, the angle a torque of the angle reads [rad]
             (`isp_twin.identification.side_angle.torque_angle`), else None.
+        gyro_error_fused: whether the angle fusion may correct the reading
+            for a gyro error it measures against the angle (False where the
+            runs of one command disagree on it,
+            `isp_twin.identification.gyro_error.one_gyro_error`).
     """
 
     name: str
@@ -171,6 +175,7 @@ class MeasuredData:
     fusion_accel: np.ndarray | None = None
     fusion_plain: np.ndarray | None = None
     torque_angle: np.ndarray | None = None
+    gyro_error_fused: bool = True
 
     def __len__(self) -> int:
         return int(self.t.shape[0])

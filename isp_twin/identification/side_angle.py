@@ -114,10 +114,11 @@ def anchored_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarra
 
 def _corrected_fusion(data: MeasuredData, window: int) -> tuple[np.ndarray, np.ndarray]:
     """The rate reading the fusion integrates (corrected for a gyro error
-    where that moves the fused angle, `fused_angle`) and the fused angle."""
+    where that moves the fused angle and the runs agree on it, `fused_angle`,
+    `MeasuredData.gyro_error_fused`) and the fused angle."""
     omega = data.omega
     fused = _fused(omega, data, window)
-    est = reading_error(data)
+    est = reading_error(data) if data.gyro_error_fused else None
     if est is not None:
         corrected = _fused(est.corrected(data.omega), data, window)
         if np.max(np.abs(corrected - fused)) > 4.0 * fusion_noise(data, window):
