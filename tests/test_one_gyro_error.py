@@ -14,6 +14,7 @@ the model.
 from __future__ import annotations
 
 import numpy as np
+from reference_axes import FAST_AXIS
 from truth_error import true_rate_params
 
 from isp_twin.identification.cost import rmse
@@ -22,20 +23,10 @@ from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.identification.side_angle import fused_angle
 from isp_twin.model.parameters import EffectSpec
-from isp_twin.reference import Axis, RegimeFriction, Sensors, simulate
+from isp_twin.reference import Sensors, simulate
 from isp_twin.reference import effects as ref
 
-AXIS = Axis(
-    0.007,
-    1.35,
-    9.5e-4,
-    (
-        RegimeFriction(0.48, 0.19, 70.0),
-        RegimeFriction(0.42, 0.17, 73.0),
-        RegimeFriction(0.36, 0.14, 72.0),
-        RegimeFriction(0.50, 0.20, 80.0),
-    ),
-)
+AXIS = FAST_AXIS
 SIGMA = 2.5e-4  # gyro noise [rad/s]
 SENSORS = Sensors(gyro_noise_rad_s=SIGMA, gyro_averaged=True, resolver_bits=14)
 LSB = 2.0 * np.pi / 2**14

@@ -15,6 +15,7 @@ the model.
 from __future__ import annotations
 
 import numpy as np
+from reference_axes import FAST_AXIS
 from truth_error import true_rate_params
 
 from isp_twin.identification.cost import rmse
@@ -28,21 +29,11 @@ from isp_twin.identification.side_angle import (
     fusion_noise,
 )
 from isp_twin.model.parameters import EffectSpec
-from isp_twin.reference import Axis, RegimeFriction, Sensors, simulate
+from isp_twin.reference import Sensors, simulate
 from isp_twin.reference.effects import Cogging
 
-INERTIA = 0.007  # [kg m^2]; with 1.35 N m s/rad, a 5.2 ms time constant
-AXIS = Axis(
-    INERTIA,
-    1.35,
-    9.5e-4,
-    (
-        RegimeFriction(0.48, 0.19, 70.0),
-        RegimeFriction(0.42, 0.17, 73.0),
-        RegimeFriction(0.36, 0.14, 72.0),
-        RegimeFriction(0.50, 0.20, 80.0),
-    ),
-)
+AXIS = FAST_AXIS  # 5.2 ms time constant
+INERTIA = AXIS.inertia_kg_m2
 COGGING = Cogging(0.12, 0.0528, 0.06)  # as strong as the Coulomb levels
 SIGMA = 2.5e-4  # gyro noise [rad/s] (0.014 deg/s)
 BITS = 14
