@@ -102,7 +102,7 @@ class RunStack:
             motor side (`_side_angles`); None: the same as ``angle``.
         torque_angle: where ``angle`` is the fused one, the angle a torque
             of the angle reads (R, N) [rad]
-            (`isp_twin.identification.side_angle.torque_angle`: anchored in
+            (`isp_twin.identification.side_angle.with_side_angle`: anchored in
             every reading); None: ``angle``.
     """
 

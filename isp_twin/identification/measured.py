@@ -157,7 +157,7 @@ class MeasuredData:
             without the zero reading's edge anchors (for an effect that
             deflects the gyro from the resolver's side), else None.
         torque_angle: there, the angle a torque of the angle reads [rad]
-            (`isp_twin.identification.side_angle.torque_angle`), else None.
+            (`isp_twin.identification.side_angle.with_side_angle`), else None.
         gyro_error_fused: whether the angle fusion may correct the reading
             for a gyro error it measures against the angle (False where the
             runs of one command disagree on it,

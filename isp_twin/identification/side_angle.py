@@ -32,7 +32,6 @@ __all__ = [
     "zero_cell_anchors",
     "reading_anchors",
     "anchored_angle",
-    "torque_angle",
     "regime_visits",
 ]
 
@@ -71,8 +70,12 @@ def fused_angle(
     a torque of the angle reads is `anchored_angle`.
     """
     omega, fused = _corrected_fusion(data, window)
-    if not anchored:
-        return fused
+    return _zero_anchored(data, omega, fused) if anchored else fused
+
+
+def _zero_anchored(data: MeasuredData, omega: np.ndarray, fused: np.ndarray) -> np.ndarray:
+    """The fusion `fused` of the reading `omega` with the zero reading's
+    anchors in place of its level (`fused_angle`), a new array."""
     at, _ = zero_cell_anchors(data, omega)
     return np.where(np.isfinite(at), at, fused)
 
@@ -97,11 +100,16 @@ def anchored_angle(data: MeasuredData, window: int = FUSION_WINDOW) -> np.ndarra
     parts of a sample, and two global refits of LuGre axes (reference 337
     and 428, whose pinned tests then failed) ended in other basins.
     """
-    omega, fused = _corrected_fusion(data, window)
+    return _weighed(data, *_corrected_fusion(data, window), window)
+
+
+def _weighed(data: MeasuredData, omega: np.ndarray, fused: np.ndarray, window: int) -> np.ndarray:
+    """The fusion `fused` of the reading `omega` weighed with every
+    reading's anchors (`anchored_angle`), a new array."""
     at, sd = reading_anchors(data, omega)
     known = np.isfinite(at)
     if not known.any():
-        return fused
+        return fused.copy()
     step = resolver_step(data.angle)
     v_fused = fusion_level_variance(data, step, window)[known]
     share = v_fused / (v_fused + sd[known] ** 2)  # the anchor's weight
@@ -451,10 +459,7 @@ def side_angle(
     if side_source == "measured":
         y = fused_angle(data, anchored=anchored)
         y[at_boundary(data, y, opening=opening, anchored=anchored)] = 0.0
-        if shift == 0.0:
-            return y
-        k = np.arange(y.size, dtype=float)
-        return np.interp(k + shift, k, y)
+        return _at_step(y, shift)
     if side_source == "raw":
         return data.angle
     if side_source == "wrap":
@@ -490,36 +495,44 @@ def with_side_angle(
     gyro's integral, the motor side's angle only where the gyro reads the
     motor side; with the truth held, a payload mode on reference resonance
     axis 50 went from 1.41 to 2.46 noise floors on a training run with them
-    (docs/identification.md "Stop 49")."""
-    angle = side_angle(data, side_source, shift, opening)
+    (docs/identification.md "Stop 49"); and the angle a torque of the angle
+    reads (``torque_angle``: `anchored_angle` at the side angle's time, 0
+    where the side angle is on the boundary; docs/identification.md "Stop 80")."""
     if side_source != "measured":
         return replace(
             data,
-            angle=angle,
+            angle=side_angle(data, side_source, shift, opening),
             resolver=None,
             fusion_accel=None,
             fusion_plain=None,
             torque_angle=None,
         )
-    plain = side_angle(data, side_source, shift, opening, anchored=False)
+    # One fusion for the three angles: the side's (`side_angle`), the
+    # fusion alone (its own boundary rule) and the torque's
+    # (`anchored_angle`, 0 where the side's is on the boundary).
+    omega, fused = _corrected_fusion(data, FUSION_WINDOW)
+    angle = _zero_anchored(data, omega, fused)
+    boundary = at_boundary(data, angle, opening=opening)
+    angle[boundary] = 0.0
+    plain = fused.copy()
+    plain[at_boundary(data, plain, opening=opening, anchored=False)] = 0.0
+    plain = _at_step(plain, shift)
+    torque = _weighed(data, omega, fused, FUSION_WINDOW)
+    torque[boundary] = 0.0
     # At rest on the boundary (`at_boundary`) the side angle is 0, not fused.
     accel = np.where(plain == 0.0, 0.0, window_accel(data))
     return replace(
         data,
-        angle=angle,
+        angle=_at_step(angle, shift),
         resolver=data.angle,
         fusion_accel=accel,
         fusion_plain=plain,
-        torque_angle=torque_angle(data, shift, opening),
+        torque_angle=_at_step(torque, shift),
     )
 
 
-def torque_angle(data: MeasuredData, shift: float = 0.0, opening: bool = False) -> np.ndarray:
-    """The angle a torque of the angle reads in each step [rad], shape (N,):
-    `anchored_angle` at sample ``k + shift`` as `side_angle` reads the fused
-    one, 0 where that puts the axis on the boundary (`at_boundary`)."""
-    y = anchored_angle(data)
-    y[at_boundary(data, fused_angle(data), opening=opening)] = 0.0
+def _at_step(y: np.ndarray, shift: float) -> np.ndarray:
+    """`y` read at sample ``k + shift`` (linear interpolation; `y` itself at 0)."""
     if shift == 0.0:
         return y
     k = np.arange(y.size, dtype=float)
