@@ -18,7 +18,12 @@ from reference_axes import FAST_AXIS
 from truth_error import true_rate_params
 
 from isp_twin.identification.cost import rmse
-from isp_twin.identification.gyro_error import GyroError, _agree, one_gyro_error
+from isp_twin.identification.gyro_error import (
+    GyroError,
+    _agree,
+    fusion_json,
+    one_gyro_error,
+)
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import Timing
 from isp_twin.identification.side_angle import fused_angle
@@ -99,3 +104,32 @@ def test_fewer_than_two_readable_runs_change_nothing():
         "still", runs[0].t, runs[0].u, runs[0].omega, 0.0 * runs[0].angle, None, 1e-3
     )
     assert all(d.gyro_error_fused for d in one_gyro_error([runs[0], still]))
+
+
+def test_both_commands_record_in_their_json_that_the_fusion_left_the_reading(tmp_path):
+    import json
+
+    from isp_twin.cli import main
+    from isp_twin.identification.measured import save_measured
+
+    runs, _ = _runs(PAYLOAD, 0)
+    files = [str(save_measured(d, tmp_path / f"run{i}.csv")) for i, d in enumerate(runs)]
+    params, summary = tmp_path / "p.yaml", tmp_path / "id.json"
+    argv = ["identify", *files, "--out", str(params), "--no-report", "--quiet"]
+    argv += ["--generations", "0", "--refine-evaluations", "5", "--json", str(summary)]
+    assert main(argv) == 0
+    diagnosed = tmp_path / "diag.json"
+    argv = ["diagnose", files[0], "--holdout", files[1], "--params", str(params)]
+    argv += ["--candidates", "sensor_bias", "--max-rounds", "1", "--iterations", "2"]
+    argv += ["--no-recording", "--quiet", "--json", str(diagnosed)]
+    assert main(argv) == 0
+    for path in (summary, diagnosed):
+        said = json.loads(path.read_text())
+        assert said["angle_fusion_corrects_gyro_error"] is False, path.name
+        assert "payload" in said["angle_fusion_note"], path.name
+
+
+def test_the_json_says_the_fusion_corrects_where_the_runs_agree():
+    runs, _ = _runs(ref.GyroError(0.002, -0.03), 0)
+    said = fusion_json(one_gyro_error(runs))
+    assert said == {"angle_fusion_corrects_gyro_error": True, "angle_fusion_note": None}

@@ -32,7 +32,7 @@ from isp_twin.estimation.coverage import (
 )
 from isp_twin.estimation.verdict import CONVERGED_RATIO, json_safe
 from isp_twin.identification.cost import held_out_determined, model_breakaways
-from isp_twin.identification.gyro_error import fusion_note, one_gyro_error
+from isp_twin.identification.gyro_error import fusion_json, fusion_note, one_gyro_error
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.side_angle import sides_as_read
 from isp_twin.model.parameters import AxisParams, load_parameters, save_parameters
@@ -167,6 +167,7 @@ def execute(args: argparse.Namespace) -> int:
     if side_override is not None:
         result["side_override"] = side_override
     result["sample_period_s"] = {d.name: d.dt for d in runs}
+    result.update(fusion_json(runs))
     result.setdefault("units", {})["sample_period_s"] = "s"
     _with_coverage(
         result, sides_as_read(train, side), sides_as_read(holdout, side), diag.noise_floor

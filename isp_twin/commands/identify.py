@@ -18,7 +18,7 @@ from isp_twin.commands.data_options import (
 )
 from isp_twin.errors import ParameterError
 from isp_twin.identification.fit import Settings, identify, to_axis_params
-from isp_twin.identification.gyro_error import fusion_note, one_gyro_error
+from isp_twin.identification.gyro_error import fusion_json, fusion_note, one_gyro_error
 from isp_twin.identification.measured import check_sample_period, load_measured, unique_names
 from isp_twin.identification.report import identification_verdict, result_json, write_report
 from isp_twin.identification.side_angle import SIDE_SOURCES
@@ -138,6 +138,7 @@ def execute(args) -> int:
     verdict = identification_verdict(result, train, validation)
     summary = result_json(result, args.axis, axis_params, validation, train, verdict)
     summary["sample_period_s"] = {d.name: d.dt for d in train + validation}
+    summary.update(fusion_json(train + validation))
     summary.setdefault("units", {})["sample_period_s"] = "s"
     with transaction():
         save_parameters(out_set, args.out)

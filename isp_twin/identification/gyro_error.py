@@ -45,6 +45,7 @@ __all__ = [
     "reading_error",
     "one_gyro_error",
     "fusion_note",
+    "fusion_json",
     "AGREEMENT_Z",
     "AGREEMENT_SHARE",
 ]
@@ -225,6 +226,18 @@ def fusion_note(runs: Sequence[MeasuredData]) -> list[str]:
         "gyro error: the runs' estimates against the angle disagree (not one gyro's bias and "
         "scale; a payload's deflection reads so): the angle fusion leaves the reading as read"
     ]
+
+
+def fusion_json(runs: Sequence[MeasuredData]) -> dict:
+    """What `fusion_note` says, for the JSON summaries of ``identify`` and
+    ``diagnose``: whether the angle fusion may correct the gyro reading by
+    its estimated error (`one_gyro_error` sets ``gyro_error_fused`` on all
+    runs together), and the note's sentence or None."""
+    note = fusion_note(runs)
+    return {
+        "angle_fusion_corrects_gyro_error": all(d.gyro_error_fused for d in runs),
+        "angle_fusion_note": note[0] if note else None,
+    }
 
 
 def _agree(estimates: Sequence[GyroError]) -> bool:
