@@ -506,11 +506,11 @@ def _tentative_read_out(
     """`identify` with a tentative effect held (`READ_OUT_EFFECTS`), the
     read-out chosen again, when it chooses another read-out than the
     data's in the gyro reading (or that read-out with its other gyro
-    reading, `_reading_refitted`), or in the half-plane's shift alone where
+    reading, `_reading_refitted`), or at the other gyro read-out where the
+    effect refitted there fits the training runs better
+    (`_other_gyro_read_out`), or else in the half-plane's shift alone where
     the effect refitted there fits the training runs better by `FLIP_GAIN`
-    (`_read_out_with`, as for an adopted effect), or at the other gyro
-    read-out where the effect refitted there fits the training runs better
-    (`_other_gyro_read_out`); else None.
+    (`_read_out_with`, as for an adopted effect); else None.
     `diagnose` then judges the base, the effect and its rivals again at
     that read-out (`round_at_read_out`, `_rival_starts`) and keeps that
     diagnosis only if an effect is adopted (the output file records that
@@ -538,12 +538,12 @@ def _tentative_read_out(
     again = identify_held(data, fit.effects(), timing=None, generations=0)
     if again.timing.gyro_average != data.timing.gyro_average:
         return _reading_refitted(again, fit, _prepared_at(checked, options, again.timing))
+    flipped = _other_gyro_read_out(data, fit)
+    if flipped is not None:
+        return identify_held(data, flipped.effects(), timing=_flipped_timing(data), generations=0)
     if again.timing != data.timing and _read_out_with(fit, data, checked, options)[1] is not None:
         return again  # the half-plane's shift alone, where the effect fits better there
-    flipped = _other_gyro_read_out(data, fit)
-    if flipped is None:
-        return None
-    return identify_held(data, flipped.effects(), timing=_flipped_timing(data), generations=0)
+    return None
 
 
 def _reading_refitted(
