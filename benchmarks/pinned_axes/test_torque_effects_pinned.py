@@ -5,10 +5,11 @@ restart, the read-out round and the second refit at the other gyro read-out
 from __future__ import annotations
 
 import pytest
-from identified_runs import reference_identified_then_diagnosed
-from test_torque_effects_reference import alike_pair_answered, judged_at_the_other_read_out
-
-from isp_twin.estimation.verdict import CONVERGED_RATIO
+from test_torque_effects_reference import (
+    alike_pair_answered,
+    cogging_found,
+    judged_at_the_other_read_out,
+)
 
 
 # Unbalance seed 3 answered the spring at stop 20 (the alike restart,
@@ -43,13 +44,4 @@ def test_a_tentative_cogging_is_judged_at_the_half_plane_identify_chooses_with_i
     now judged there too, not only at another gyro reading
     (`search._tentative_read_out`). A regression test, not its validation
     (docs/diagnosis.md "Stop 81")."""
-    torques = ("cogging", "unbalance", "cable_spring")
-    exp, d = reference_identified_then_diagnosed(
-        tmp_path, 464, "cogging", torques, held_out="covered"
-    )
-    true = exp.truth()["effects"][0]["params"]
-    assert d.selected_effect == "cogging"
-    assert d.rmse_after <= CONVERGED_RATIO * d.noise_floor
-    got = dict(d.params_out.axes[d.axis].effects[0].params)
-    assert got["period_rad"] == pytest.approx(true["period_rad"], rel=0.01)
-    assert got["amplitude_rad_s2"] == pytest.approx(true["amplitude_rad_s2"], rel=0.1)
+    cogging_found(tmp_path, 464)
