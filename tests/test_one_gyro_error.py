@@ -122,6 +122,7 @@ def test_both_commands_record_in_their_json_that_the_fusion_left_the_reading(tmp
     argv = ["diagnose", files[0], "--holdout", files[1], "--params", str(params)]
     argv += ["--candidates", "sensor_bias", "--max-rounds", "1", "--iterations", "2"]
     argv += ["--no-recording", "--quiet", "--json", str(diagnosed)]
+    argv += ["--report", str(tmp_path / "report")]
     assert main(argv) == 0
     for path in (summary, diagnosed):
         said = json.loads(path.read_text())
