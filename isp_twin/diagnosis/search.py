@@ -426,12 +426,22 @@ def _read_out_with(
     data's and `model`'s effect refitted there from those rates fits the
     training runs better than `model` by `FLIP_GAIN`; else (that, None)."""
     again = identify_held(data, model.effects(), timing=None, generations=0)
+    return again, _gained_there(model, data, checked, options, again)
+
+
+def _gained_there(
+    model: CandidateFit, data: DiagnosisData, checked, options, again: IdentificationResult
+) -> DiagnosisData | None:
+    """The data prepared at the read-out of `again` (`identify` with
+    `model`'s effects held) where it differs from the data's and `model`'s
+    effect refitted there from its rates fits the training runs better
+    than `model` by `FLIP_GAIN`; else None (`_read_out_with`)."""
     if again.timing == data.timing:
-        return again, None
+        return None
     there = _prepared_at(checked, options, again.timing)
     refit = _refitted(model, there.train, again.vector, data.max_iter)
     gained = refit.sse / refit.n_samples < (1.0 - FLIP_GAIN) * model.sse / model.n_samples
-    return again, (there if gained else None)
+    return there if gained else None
 
 
 def _at_read_out(diag, data, data2, again, params, before_held) -> Diagnosis:
@@ -510,7 +520,7 @@ def _tentative_read_out(
     effect refitted there fits the training runs better
     (`_other_gyro_read_out`), or else in the half-plane's shift alone where
     the effect refitted there fits the training runs better by `FLIP_GAIN`
-    (`_read_out_with`, as for an adopted effect); else None.
+    (`_gained_there`, as for an adopted effect); else None.
     `diagnose` then judges the base, the effect and its rivals again at
     that read-out (`round_at_read_out`, `_rival_starts`) and keeps that
     diagnosis only if an effect is adopted (the output file records that
@@ -541,7 +551,7 @@ def _tentative_read_out(
     flipped = _other_gyro_read_out(data, fit)
     if flipped is not None:
         return identify_held(data, flipped.effects(), timing=_flipped_timing(data), generations=0)
-    if again.timing != data.timing and _read_out_with(fit, data, checked, options)[1] is not None:
+    if _gained_there(fit, data, checked, options, again) is not None:
         return again  # the half-plane's shift alone, where the effect fits better there
     return None
 
