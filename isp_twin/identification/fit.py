@@ -70,7 +70,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -113,6 +113,7 @@ from isp_twin.model.substep_model import DEFAULT_INTEGRATION, Integration
 from isp_twin.units import DEG
 
 __all__ = [
+    "JACOBIAN_SUBSTEPS",
     "RATE_FIELDS",
     "Settings",
     "IdentificationResult",
@@ -131,6 +132,17 @@ RATE_FIELDS: tuple[str, ...] = RATE_LAYOUT.fields
 _REFERENCE_NOISE = 1e-3
 #: Largest relative 95 % half-width of an identifiable quantity.
 _MAX_RELATIVE_CI = 0.5
+
+
+#: Sub-steps per sample of the refinement's finite-difference columns
+#: (`Settings.jacobian_substeps`, default of `identify`): the columns are
+#: 20 of the 21 simulated sets of a Jacobian evaluation and took 70 % of a
+#: clean identify (reference seed 443: 21 of 30 s). A column is the slope of
+#: the model's response; the truth integrated in 4 sub-steps fits the
+#: reference runs within 0.02 noise floors of 10 on 39 of 40 clean dev axes
+#: (seeds 1000-1039, docs/identification.md "Stop 83"), and a step the
+#: coarser slope proposes is still accepted only on the model's own cost.
+JACOBIAN_SUBSTEPS = 4
 
 
 @dataclass(frozen=True)
@@ -166,6 +178,11 @@ class Settings:
             `TIMINGS` that fits best (``side_source="measured"``; else Eq. 6's).
         integration: how the model integrates a sample
             (`isp_twin.model.substep_model.Integration`; `EQ6` is the paper's Eq. 6).
+        jacobian_substeps: sub-steps per sample of the refinement's
+            finite-difference columns (`_Search.columns`) where the model
+            integrates more (`JACOBIAN_SUBSTEPS`); None: the model's own.
+            The residuals, so the cost, every step's acceptance and the
+            result's figures, stay the model's.
         regime_spread: the factor within which the regimes' friction
             quantities (b·Tc, b·(Ts-Tc), alpha) are expected to agree, one
             standard deviation of a weak prior that pulls each toward the
@@ -189,6 +206,7 @@ class Settings:
     prior_in_search: bool = False
     timing: Timing | None = None
     integration: Integration = DEFAULT_INTEGRATION
+    jacobian_substeps: int | None = JACOBIAN_SUBSTEPS
     regime_spread: float | None = 3.0
 
     def __post_init__(self):
@@ -198,6 +216,8 @@ class Settings:
             )
         if self.population < 5 or self.generations < 0:
             raise ParameterError("population >= 5 and generations >= 0 required")
+        if self.jacobian_substeps is not None and self.jacobian_substeps < 1:
+            raise ParameterError(f"jacobian sub-steps must be >= 1, got {self.jacobian_substeps}")
         if self.regime_spread is not None and not self.regime_spread > 1.0:
             raise ParameterError(f"regime spread must be > 1 (a factor), got {self.regime_spread}")
 
@@ -445,6 +465,7 @@ class _Search:
         self.data, self.free, self.s, self.effects, self.progress = data, free, s, effects, progress
         self.timing = Timing()
         self._stacked: tuple[Timing, RunStack] | None = None
+        self._column_stack: tuple[Timing, RunStack] | None = None
         self.evaluations = 0
         self.initial_cost = float(self.batch_cost(free.x0[:, None])[0])
         self.history: list[float] = [self.initial_cost]
@@ -482,6 +503,21 @@ class _Search:
             s.integration,
         )
 
+    def _column_model(self) -> tuple | None:
+        """`_model` with the sub-steps of the finite-difference columns
+        (`Settings.jacobian_substeps`), stacked once per read-out timing;
+        None where the columns take the model's own."""
+        s = self.s
+        m = s.jacobian_substeps
+        if m is None or s.integration.substeps <= m:
+            return None
+        integration = replace(s.integration, substeps=m)
+        if self._column_stack is None or self._column_stack[0] != self.timing:
+            stack = run_stack(self.data, s.side_source, s.rest_rate_deg_s, self.timing, integration)
+            self._column_stack = (self.timing, stack)
+        _, *rest, _ = self._model()
+        return (self._column_stack[1], *rest, integration)
+
     def residuals_of(self, xs: np.ndarray) -> np.ndarray:
         """`residuals` at free quantities (P, n_free) with this search's timing."""
         return residuals(self.free.full(xs), *self._model())
@@ -507,26 +543,35 @@ class _Search:
         """
         h = np.full(z.size, 1e-6)
         cache = self.cache
+        # Columns simulated apart (`_column_model`) are asked for below.
+        together = jacobian and self._column_model() is None
         if "z" not in cache or not np.array_equal(cache["z"], z):
-            pts = np.vstack([z, z + np.diag(h)]) if jacobian else z[None]
+            pts = np.vstack([z, z + np.diag(h)]) if together else z[None]
             self.evaluations += pts.shape[0]
             e = self.residuals_of(from_z(pts))
             cache.clear()
             cache.update(z=z.copy(), e=e[0])
-            if jacobian:
+            if together:
                 cache["j"] = ((e[1:] - e[0]) / h[:, None]).T
             if self.progress is not None:
                 self.progress("refine", self.evaluations, float(np.sqrt(np.mean(e[0] ** 2))))
-        elif jacobian and "j" not in cache:
+        if jacobian and "j" not in cache:
             cache["j"] = self.columns(z, np.ones(z.size, bool))
 
     def columns(self, z: np.ndarray, moved: np.ndarray) -> np.ndarray:
         """Forward differences at z (cached by `evaluate`) of the `moved`
-        search variables (boolean mask), one simulated set each: (M, moved)."""
+        search variables (boolean mask), one simulated set each: (M, moved).
+        With `Settings.jacobian_substeps` (`_column_model`) they are
+        differences from z simulated the same way, one more set."""
         h = 1e-6
         pts = z + h * np.eye(z.size)[moved]
-        self.evaluations += pts.shape[0]
-        return ((self.residuals_of(from_z(pts)) - self.cache["e"]) / h).T
+        model = self._column_model()
+        if model is None:
+            self.evaluations += pts.shape[0]
+            return ((self.residuals_of(from_z(pts)) - self.cache["e"]) / h).T
+        self.evaluations += pts.shape[0] + 1
+        e = residuals(self.free.full(from_z(np.vstack([z, pts]))), *model)
+        return ((e[1:] - e[0]) / h).T
 
     def resid(self, z: np.ndarray) -> np.ndarray:
         self.evaluate(z, jacobian=False)
