@@ -52,11 +52,14 @@ def reference_identified_then_diagnosed(
     return exp, identified_then_diagnosed(folder, runs, candidates)
 
 
-def identified_reference(folder: Path, seed: int, held_out: str | None = None) -> tuple[dict, dict]:
+def identified_reference(
+    folder: Path, seed: int, held_out: str | None = None, options: tuple[str, ...] = ()
+) -> tuple[dict, dict]:
     """`isp-twin generate --reference --seed seed` (clean; `held_out`: its
     --held-out design, default the command's) into `folder`, then
-    `isp-twin identify` with defaults on train1 and train2, the held-out run
-    given to --validate: (its --json content, the truth.yaml content)."""
+    `isp-twin identify` with defaults (and `options`) on train1 and train2,
+    the held-out run given to --validate: (its --json content, the
+    truth.yaml content)."""
     argv = [
         "generate",
         "--reference",
@@ -73,5 +76,5 @@ def identified_reference(folder: Path, seed: int, held_out: str | None = None) -
     js = folder / "id.json"
     argv = ["identify", str(folder / "train1.csv"), str(folder / "train2.csv")]
     argv += ["--out", str(folder / "p.yaml"), "--validate", str(folder / "heldout.csv")]
-    assert main(argv + ["--json", str(js), "--quiet", "--no-report"]) == 0
+    assert main(argv + [*options, "--json", str(js), "--quiet", "--no-report"]) == 0
     return json.loads(js.read_text()), yaml.safe_load((folder / "truth.yaml").read_text())

@@ -6,18 +6,24 @@ shaped it: with the breakaway's midpoint friction the third of the budget
 spent from the start at each reading ended lower at the point reading, the
 whole budget went there, and the fit stopped at 1.30/1.73 noise floors on
 the training runs. This test pins that axis; it does not validate the
-stage (the benchmark in the docs does, on other seeds).
+stage (the benchmark in the docs does, on other seeds). It pins it with
+the least squares' columns at the model's own sub-steps: with identify's
+default 4-sub-step columns (docs/identification.md "Stop 83") the fit from
+the data's start is lowest at the averaged reading already.
 """
 
 from __future__ import annotations
 
+import pytest
 from identified_runs import identified_reference
 
 
-def test_the_fit_of_seed_237_moves_to_the_averaged_reading_and_the_noise(tmp_path):
-    result, truth = identified_reference(tmp_path, 237)
+@pytest.mark.parametrize("options", [("--jacobian-substeps", "0"), ()], ids=["own", "default"])
+def test_the_fit_of_seed_237_moves_to_the_averaged_reading_and_the_noise(tmp_path, options):
+    result, truth = identified_reference(tmp_path, 237, options=options)
     assert truth["sensors"]["gyro_averaged"]
-    assert "least squares at gyro rate averaged over the sample" in result["status"]
+    if options:  # the stage moves it there
+        assert "least squares at gyro rate averaged over the sample" in result["status"]
     assert result["timing"]["gyro_average"] is True
     per_set = result["verdict"]["per_set"]
     assert per_set["train1"]["rmse_over_noise_floor"] <= 1.1

@@ -108,6 +108,15 @@ def _add_search_options(p) -> None:
         "'none': neither; "
         f"default {Settings.regime_spread:g})",
     )
+    p.add_argument(
+        "--jacobian-substeps",
+        type=_column_substeps,
+        default=Settings.jacobian_substeps,
+        metavar="M",
+        help="sub-steps per sample of the least squares' finite-difference columns, the slopes "
+        "its steps are proposed from, where the model integrates more (every cost stays the "
+        f"model's; 0: the model's own; default {Settings.jacobian_substeps})",
+    )
 
 
 def execute(args) -> int:
@@ -211,7 +220,19 @@ def _settings(args) -> Settings:
         prior_in_search=args.prior_in_search,
         integration=integration_from_args(args),
         regime_spread=args.regime_spread,
+        jacobian_substeps=args.jacobian_substeps,
     )
+
+
+def _column_substeps(text: str) -> int | None:
+    """--jacobian-substeps: an integer >= 0; 0 (the model's own) as None."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got '{text}'")
+    return value or None
 
 
 def _spread(text: str) -> float | None:
