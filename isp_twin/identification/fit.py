@@ -464,8 +464,9 @@ class _Search:
     ) -> None:
         self.data, self.free, self.s, self.effects, self.progress = data, free, s, effects, progress
         self.timing = Timing()
-        self._stacked: tuple[Timing, RunStack] | None = None
-        self._column_stack: tuple[Timing, RunStack] | None = None
+        # The runs stacked per integration, at `_stacks_timing` (`_model`).
+        self._stacks: dict[Integration, RunStack] = {}
+        self._stacks_timing: Timing | None = None
         self.evaluations = 0
         self.initial_cost = float(self.batch_cost(free.x0[:, None])[0])
         self.history: list[float] = [self.initial_cost]
@@ -484,39 +485,36 @@ class _Search:
         self.z_best = self.starts[0]
         self.best_cost = np.inf
 
-    def _model(self) -> tuple:
+    def _model(self, integration: Integration | None = None) -> tuple:
         """What `residuals` and `rmse` take after the parameters: the data
-        (stacked once per read-out timing) and this search's side source, rest
-        level, effects, timing and integration."""
+        (stacked once per read-out timing and integration) and this search's
+        side source, rest level, effects, timing and integration (the
+        settings' unless `integration` is given)."""
         s = self.s
-        if self._stacked is None or self._stacked[0] != self.timing:
-            stack = run_stack(
-                self.data, s.side_source, s.rest_rate_deg_s, self.timing, s.integration
+        integration = s.integration if integration is None else integration
+        if self._stacks_timing != self.timing:
+            self._stacks, self._stacks_timing = {}, self.timing
+        if integration not in self._stacks:
+            self._stacks[integration] = run_stack(
+                self.data, s.side_source, s.rest_rate_deg_s, self.timing, integration
             )
-            self._stacked = (self.timing, stack)
         return (
-            self._stacked[1],
+            self._stacks[integration],
             s.side_source,
             s.rest_rate_deg_s,
             self.effects,
             self.timing,
-            s.integration,
+            integration,
         )
 
     def _column_model(self) -> tuple | None:
         """`_model` with the sub-steps of the finite-difference columns
-        (`Settings.jacobian_substeps`), stacked once per read-out timing;
-        None where the columns take the model's own."""
-        s = self.s
-        m = s.jacobian_substeps
-        if m is None or s.integration.substeps <= m:
+        (`Settings.jacobian_substeps`); None where the columns take the
+        model's own."""
+        m = self.s.jacobian_substeps
+        if m is None or self.s.integration.substeps <= m:
             return None
-        integration = replace(s.integration, substeps=m)
-        if self._column_stack is None or self._column_stack[0] != self.timing:
-            stack = run_stack(self.data, s.side_source, s.rest_rate_deg_s, self.timing, integration)
-            self._column_stack = (self.timing, stack)
-        _, *rest, _ = self._model()
-        return (self._column_stack[1], *rest, integration)
+        return self._model(replace(self.s.integration, substeps=m))
 
     def residuals_of(self, xs: np.ndarray) -> np.ndarray:
         """`residuals` at free quantities (P, n_free) with this search's timing."""
