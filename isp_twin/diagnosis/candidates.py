@@ -22,8 +22,8 @@ import numpy as np
 from isp_twin.diagnosis.residual import ResidualContext, residual_context
 from isp_twin.estimation.information import bic
 from isp_twin.estimation.intervals import confidence_intervals
-from isp_twin.estimation.least_squares import FitResult, FitStatus, lm_steps, solve_many
-from isp_twin.estimation.simulation_error import RunStack, predict, residuals_many
+from isp_twin.estimation.least_squares import FitResult, FitStatus, Slopes, lm_steps, solve_many
+from isp_twin.estimation.simulation_error import RunStack, predict, residuals_many, slope_stack
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec
 from isp_twin.model.rate_layout import CandidateLayout
@@ -178,28 +178,54 @@ def fit_candidates(
     entries = _entries(
         names, *_starts(stack, x_rate, classes, fixed, context, starts, rate_starts), x_rate
     )
-    layouts, problems, scales = _problems(entries, classes, max_iter, stack.integration.substeps)
+    slopes = _slope_stacks(stack, names, fixed)
+    layouts, problems, scales = _problems(entries, classes, max_iter, stack.integration, slopes)
+
+    def request(i, x):
+        n, vec, frozen, start = layouts[i]
+        rate, eff = vec.split(x)
+        if n == BASELINE:
+            return (rate, None, {})
+        eff.update({p: np.full(x.shape[0], start[p]) for p in frozen})
+        return (rate, n, eff)
 
     def evaluate(reqs):
-        batch = []
-        for i, x in reqs:
-            n, vec, frozen, start = layouts[i]
-            rate, eff = vec.split(x)
-            if n == BASELINE:
-                batch.append((rate, None, {}))
-                continue
-            eff.update({p: np.full(x.shape[0], start[p]) for p in frozen})
-            batch.append((rate, n, eff))
-        return residuals_many(stack, batch, fixed)
+        return _simulated(reqs, request, stack, [slopes[layout[0]] for layout in layouts], fixed)
 
     layouts, fits, scales = _best_per_candidate(layouts, solve_many(problems, evaluate), scales)
     if polish:
         fits = _polish_effects(stack, layouts, fits, scales, max_iter, fixed)
-    fits = _consensus_shapes(layouts, fits, scales, max_iter, evaluate)
+    fits = _consensus_shapes(layouts, fits, scales, max_iter, evaluate, slopes)
     return {
         layout[0]: _named_result(layout, fit, classes, stack, fixed)
         for layout, fit in zip(layouts, fits)
     }
+
+
+def _slope_stacks(stack: RunStack, names, fixed) -> dict[str, RunStack | None]:
+    """Per candidate, the runs as its least squares simulates its columns
+    (`slope_stack`: fewer sub-steps, unless the candidate or an effect in
+    `fixed` needs the model's own); None: the model's own."""
+    held = [e.name for e in fixed]
+    return {n: slope_stack(stack, held + ([] if n == BASELINE else [n])) for n in names}
+
+
+def _simulated(reqs, request, stack: RunStack, slopes, fixed) -> list[np.ndarray]:
+    """Residuals of `reqs`, [(problem index, points (P, n) or `Slopes`)]:
+    points on `stack`, a problem's `Slopes` on its stack in `slopes` (by
+    problem index); `request(i, points)` makes the `residuals_many` request.
+    One `residuals_many` call per stack."""
+    groups: dict[int, tuple[RunStack, list]] = {}
+    for k, (i, x) in enumerate(reqs):
+        on = stack
+        if isinstance(x, Slopes):
+            on, x = slopes[i], x.points
+        groups.setdefault(id(on), (on, []))[1].append((k, request(i, x)))
+    out: list[np.ndarray] = [np.empty(0)] * len(reqs)
+    for on, items in groups.values():
+        for (k, _), res in zip(items, residuals_many(on, [r for _, r in items], fixed)):
+            out[k] = res
+    return out
 
 
 def _starts(stack, x_rate, classes, fixed, context, starts, rate_starts) -> tuple[dict, dict]:
@@ -345,14 +371,16 @@ def _entries(names, starts, rate_starts, x_rate) -> list[tuple]:
     return out
 
 
-def _problems(entries, classes, max_iter, m):
+def _problems(entries, classes, max_iter, integration, slopes):
     """Each fit's vector layout, Levenberg-Marquardt problem and bounds, one
-    per entry (`_entries`); at m = 1 (`_held`) a `substep_only` parameter is
-    held at its default.
+    per entry (`_entries`); at m = 1 sub-step (`_held`) a `substep_only`
+    parameter is held at its default. A candidate with a stack in `slopes`
+    (`_slope_stacks`) takes its columns apart there.
 
     Returns (layouts, problems, scales): layouts as (name, CandidateLayout,
     frozen effect parameters, effect start); scales as (lower, upper, scale).
     """
+    m = integration.substeps
     layouts, problems, scales = [], [], []
     for n, effect_start, rate_start in entries:
         if n == BASELINE:
@@ -381,6 +409,7 @@ def _problems(entries, classes, max_iter, m):
                 *bounds,
                 max_iter=max_iter,
                 scan=RATE_LAYOUT.static_indices,
+                slopes_apart=slopes[n] is not None,
             )
         )
     return layouts, problems, scales
@@ -505,7 +534,7 @@ def shape_groups(values: np.ndarray) -> list[list[int]]:
     return groups
 
 
-def _consensus_shapes(layouts, fits, scales, max_iter, evaluate) -> list[FitResult]:
+def _consensus_shapes(layouts, fits, scales, max_iter, evaluate, slopes) -> list[FitResult]:
     """Each fit refitted from the regimes whose friction shape lies far from
     the others' given their shape (`consensus_shapes`; the best of those
     starts, one batched simulation), kept where that fits the training runs
@@ -527,7 +556,15 @@ def _consensus_shapes(layouts, fits, scales, max_iter, evaluate) -> list[FitResu
     starts = []
     for (i, xs), res in zip(tried, evaluate(tried)):
         starts.append((i, xs[int(np.argmin(np.einsum("pm,pm->p", res, res)))]))
-    problems = [lm_steps(x, *_shape_bounds(x, scales[i]), max_iter=max_iter) for i, x in starts]
+    problems = [
+        lm_steps(
+            x,
+            *_shape_bounds(x, scales[i]),
+            max_iter=max_iter,
+            slopes_apart=slopes[layouts[i][0]] is not None,
+        )
+        for i, x in starts
+    ]
     refits = solve_many(problems, lambda reqs: evaluate([(starts[j][0], x) for j, x in reqs]))
     out = list(fits)
     for (i, _), fit in zip(starts, refits):

@@ -55,10 +55,10 @@ __all__ = [
 #: opt-in base search): Eq. 9 alone, no regime prior (it moved a leading
 #: input delay's refit into another basin, docs/diagnosis.md "Stop 19"), and
 #: no restart at the noise (it turned input delay seed 0 tentative,
-#: docs/diagnosis.md "Stop 26"), and the Jacobian's columns at the model's
-#: own sub-steps (identify's coarser ones, `fit.JACOBIAN_SUBSTEPS`, are not
-#: yet measured on the diagnose benchmarks; docs/identification.md "Stop 83").
-DIAGNOSE_FIT = {"regime_spread": None, "restart_at_noise": False, "jacobian_substeps": None}
+#: docs/diagnosis.md "Stop 26"). The Jacobian's columns are identify's
+#: (`JACOBIAN_SUBSTEPS` sub-steps where no held effect needs the model's
+#: own, `slope_stack`), as are the candidates' (docs/diagnosis.md "Stop 84").
+DIAGNOSE_FIT = {"regime_spread": None, "restart_at_noise": False}
 
 #: `side_choice` keeps the raw angle only where it fits the starting model
 #: better than the fused one by this fraction of the training cost. Without

@@ -22,7 +22,7 @@ region's step control is worth its sequential steps there
 from __future__ import annotations
 
 from collections.abc import Callable, Generator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import numpy as np
@@ -30,6 +30,7 @@ import numpy as np
 __all__ = [
     "FitResult",
     "FitStatus",
+    "Slopes",
     "TrustRegionResult",
     "levenberg_marquardt",
     "lm_steps",
@@ -67,6 +68,18 @@ class FitResult:
     sse_log: tuple[float, ...]
 
 
+@dataclass(frozen=True)
+class Slopes:
+    """What `lm_steps` yields for its finite-difference columns when asked
+    to take them apart (``slopes_apart``): the linearisation point first,
+    then one point per column, (n + 1, n). The evaluator may simulate them
+    with a cheaper model (diagnose: fewer sub-steps,
+    `isp_twin.estimation.simulation_error.JACOBIAN_SUBSTEPS`); the columns
+    are differences within that set, so they are that model's slopes."""
+
+    points: np.ndarray
+
+
 def lm_steps(
     x0: np.ndarray,
     lower: np.ndarray,
@@ -77,7 +90,8 @@ def lm_steps(
     rel_step: float = 1e-3,
     scan: Sequence[int] = (),
     scan_factors: Sequence[float] = (0.6, 0.7, 0.8, 0.9, 0.95, 1.05, 1.1, 1.2, 1.35, 1.5),
-) -> Generator[np.ndarray, np.ndarray, FitResult]:
+    slopes_apart: bool = False,
+) -> Generator[np.ndarray | Slopes, np.ndarray, FitResult]:
     """Levenberg-Marquardt as a generator: it yields the points it needs,
     shape (P, n), receives their residuals, shape (P, M), and returns the
     `FitResult`. `solve_many` drives several in lockstep, so one batched
@@ -87,13 +101,24 @@ def lm_steps(
     ``x0 * scan_factors`` (the best of each kept, then checked together):
     thresholds such as the breakaway torque change the cost in steps that a
     finite difference does not see.
+
+    With `slopes_apart`, each iteration's columns are asked for as `Slopes`
+    (the evaluator's cheaper model); every step is still accepted on the
+    residuals of plain points, and the returned `FitResult.jacobian`
+    (the intervals') is one more set of plain columns at the end point.
     """
     x = np.clip(np.asarray(x0, float), lower, upper)
     r = (yield x[None])[0]
     sse = float(r @ r)
     if len(scan):
         x, r, sse = yield from _scanned(x, r, sse, lower, upper, scan, scan_factors)
-    return (yield from _iterations(x, r, sse, lower, upper, scale, max_iter, rtol, rel_step))
+    fit = yield from _iterations(
+        x, r, sse, lower, upper, scale, max_iter, rtol, rel_step, slopes_apart
+    )
+    if slopes_apart and fit.x.size:
+        jac = yield from _jacobian(fit.x, fit.residual, scale, upper, rel_step)
+        fit = replace(fit, jacobian=jac)
+    return fit
 
 
 _Steps = Generator[np.ndarray, np.ndarray, tuple]
@@ -122,8 +147,8 @@ def _scanned(x, r, sse, lower, upper, scan, scan_factors) -> _Steps:
 
 
 def _iterations(
-    x, r, sse, lower, upper, scale, max_iter, rtol, rel_step
-) -> Generator[np.ndarray, np.ndarray, FitResult]:
+    x, r, sse, lower, upper, scale, max_iter, rtol, rel_step, slopes_apart=False
+) -> Generator[np.ndarray | Slopes, np.ndarray, FitResult]:
     """`lm_steps`' damped Gauss-Newton iterations from x (three dampings tried per iteration)."""
     n = x.size
     lam = 1e-2
@@ -134,7 +159,7 @@ def _iterations(
         if n == 0:
             status = FitStatus.CONVERGED
             break
-        jac = yield from _jacobian(x, r, scale, upper, rel_step)
+        jac = yield from _jacobian(x, r, scale, upper, rel_step, slopes_apart)
         lams = lam * np.array([0.1, 1.0, 10.0])
         trials = _damped_steps(jac, r, x, scale, lower, upper, lams)
         rt = yield trials
@@ -158,12 +183,19 @@ def _iterations(
     return FitResult(x, r, sse, jac, status, tuple(log))
 
 
-def _jacobian(x, r, scale, upper, rel_step) -> Generator[np.ndarray, np.ndarray, np.ndarray]:
-    """Forward differences at x (one batched evaluation), (M, n)."""
+def _jacobian(
+    x, r, scale, upper, rel_step, apart: bool = False
+) -> Generator[np.ndarray | Slopes, np.ndarray, np.ndarray]:
+    """Forward differences at x (one batched evaluation), (M, n); `apart`:
+    from x's residuals simulated with the columns (`Slopes`), not from r."""
     h = rel_step * scale
     step = np.where(x + h <= upper, h, -h)
     pts = x[None] + np.diag(step)
-    jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)
+    if apart:
+        rs = yield Slopes(np.vstack([x[None], pts]))
+        jac = ((rs[1:] - rs[0][None]) / step[:, None]).T
+    else:
+        jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)
     # A finite-difference point the model cannot simulate (a candidate
     # that diverges there) gives no slope: that parameter stays put this
     # iteration and, if it never gets one, has no interval (a zero column).

@@ -79,7 +79,7 @@ from isp_twin.errors import DataError, ParameterError
 from isp_twin.estimation.intervals import Intervals, confidence_intervals
 from isp_twin.estimation.least_squares import FitStatus, trust_region
 from isp_twin.estimation.parameter_file import fitted_axis
-from isp_twin.estimation.simulation_error import RunStack
+from isp_twin.estimation.simulation_error import JACOBIAN_SUBSTEPS, RunStack, slope_stack
 from isp_twin.identification.cost import rate_noise, residuals, rmse, run_stack
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import TIMINGS, Timing, fitted_with
@@ -132,17 +132,6 @@ RATE_FIELDS: tuple[str, ...] = RATE_LAYOUT.fields
 _REFERENCE_NOISE = 1e-3
 #: Largest relative 95 % half-width of an identifiable quantity.
 _MAX_RELATIVE_CI = 0.5
-
-
-#: Sub-steps per sample of the refinement's finite-difference columns
-#: (`Settings.jacobian_substeps`, default of `identify`): the columns are
-#: 20 of the 21 simulated sets of a Jacobian evaluation and took 70 % of a
-#: clean identify (reference seed 443: 21 of 30 s). A column is the slope of
-#: the model's response; the truth integrated in 4 sub-steps fits the
-#: reference runs within 0.02 noise floors of 10 on 39 of 40 clean dev axes
-#: (seeds 1000-1039, docs/identification.md "Stop 83"), and a step the
-#: coarser slope proposes is still accepted only on the model's own cost.
-JACOBIAN_SUBSTEPS = 4
 
 
 @dataclass(frozen=True)
@@ -509,10 +498,13 @@ class _Search:
 
     def _column_model(self) -> tuple | None:
         """`_model` with the sub-steps of the finite-difference columns
-        (`Settings.jacobian_substeps`); None where the columns take the
-        model's own."""
+        (`Settings.jacobian_substeps`; the refinement's columns were 20 of
+        the 21 simulated sets of a Jacobian evaluation and took 70 % of a
+        clean identify, reference seed 443: 21 of 30 s); None where the
+        columns take the model's own (`slope_stack`: as many sub-steps, or
+        a held effect whose slopes need them)."""
         m = self.s.jacobian_substeps
-        if m is None or self.s.integration.substeps <= m:
+        if slope_stack(self._model()[0], [e.name for e in self.effects], m) is None:
             return None
         return self._model(replace(self.s.integration, substeps=m))
 

@@ -22,6 +22,8 @@ class InputDelay(Effect):
     #: Parameters that make the effect do nothing.
     null: ClassVar[dict[str, float]] = {"delay_s": 0.0}
     bounds: ClassVar[dict[str, tuple[float, float]]] = {"delay_s": (0.0, 0.05)}
+    #: A fractional delay switches the command at a sub-step.
+    fine_slopes = True
 
     def reset(self) -> None:
         steps = np.maximum(np.asarray(self.params["delay_s"], dtype=float), 0.0) / self.dt

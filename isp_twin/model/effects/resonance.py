@@ -112,6 +112,7 @@ class Resonance(Effect):
     defaults: ClassVar[dict[str, float]] = {"payload_fraction": 0.0}
     substep_only: ClassVar[tuple[str, ...]] = ("payload_fraction",)
     in_substeps = True
+    fine_slopes = True
 
     @classmethod
     def check_params(cls, params) -> None:
