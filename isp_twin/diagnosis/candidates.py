@@ -22,8 +22,8 @@ import numpy as np
 from isp_twin.diagnosis.residual import ResidualContext, residual_context
 from isp_twin.estimation.information import bic
 from isp_twin.estimation.intervals import confidence_intervals
-from isp_twin.estimation.least_squares import FitResult, FitStatus, Slopes, lm_steps, solve_many
-from isp_twin.estimation.simulation_error import RunStack, predict, residuals_many, slope_stack
+from isp_twin.estimation.least_squares import FitResult, FitStatus, Relative, lm_steps, solve_many
+from isp_twin.estimation.simulation_error import RunStack, predict, relative_stack, residuals_many
 from isp_twin.model.effects import effect_class
 from isp_twin.model.parameters import RATE_LAYOUT, EffectSpec
 from isp_twin.model.rate_layout import CandidateLayout
@@ -178,8 +178,8 @@ def fit_candidates(
     entries = _entries(
         names, *_starts(stack, x_rate, classes, fixed, context, starts, rate_starts), x_rate
     )
-    slopes = _slope_stacks(stack, names, fixed)
-    layouts, problems, scales = _problems(entries, classes, max_iter, stack.integration, slopes)
+    relative = _relative_stacks(stack, names, fixed)
+    layouts, problems, scales = _problems(entries, classes, max_iter, stack.integration, relative)
 
     def request(i, x):
         n, vec, frozen, start = layouts[i]
@@ -190,36 +190,37 @@ def fit_candidates(
         return (rate, n, eff)
 
     def evaluate(reqs):
-        return _simulated(reqs, request, stack, [slopes[layout[0]] for layout in layouts], fixed)
+        return _simulated(reqs, request, stack, [relative[layout[0]] for layout in layouts], fixed)
 
     layouts, fits, scales = _best_per_candidate(layouts, solve_many(problems, evaluate), scales)
     if polish:
         fits = _polish_effects(stack, layouts, fits, scales, max_iter, fixed)
-    fits = _consensus_shapes(layouts, fits, scales, max_iter, evaluate, slopes)
+    fits = _consensus_shapes(layouts, fits, scales, max_iter, evaluate, relative)
     return {
         layout[0]: _named_result(layout, fit, classes, stack, fixed)
         for layout, fit in zip(layouts, fits)
     }
 
 
-def _slope_stacks(stack: RunStack, names, fixed) -> dict[str, RunStack | None]:
-    """Per candidate, the runs as its least squares simulates its columns
-    (`slope_stack`: fewer sub-steps, unless the candidate or an effect in
+def _relative_stacks(stack: RunStack, names, fixed) -> dict[str, RunStack | None]:
+    """Per candidate, the runs as its least squares simulates the points it
+    only compares among themselves, its columns and static scan
+    (`relative_stack`: fewer sub-steps, unless the candidate or an effect in
     `fixed` needs the model's own); None: the model's own."""
     held = [e.name for e in fixed]
-    return {n: slope_stack(stack, held + ([] if n == BASELINE else [n])) for n in names}
+    return {n: relative_stack(stack, held + ([] if n == BASELINE else [n])) for n in names}
 
 
-def _simulated(reqs, request, stack: RunStack, slopes, fixed) -> list[np.ndarray]:
-    """Residuals of `reqs`, [(problem index, points (P, n) or `Slopes`)]:
-    points on `stack`, a problem's `Slopes` on its stack in `slopes` (by
+def _simulated(reqs, request, stack: RunStack, relative, fixed) -> list[np.ndarray]:
+    """Residuals of `reqs`, [(problem index, points (P, n) or `Relative`)]:
+    points on `stack`, a problem's `Relative` on its stack in `relative` (by
     problem index); `request(i, points)` makes the `residuals_many` request.
     One `residuals_many` call per stack."""
     groups: dict[int, tuple[RunStack, list]] = {}
     for k, (i, x) in enumerate(reqs):
         on = stack
-        if isinstance(x, Slopes):
-            on, x = slopes[i], x.points
+        if isinstance(x, Relative):
+            on, x = relative[i], x.points
         groups.setdefault(id(on), (on, []))[1].append((k, request(i, x)))
     out: list[np.ndarray] = [np.empty(0)] * len(reqs)
     for on, items in groups.values():
@@ -371,11 +372,11 @@ def _entries(names, starts, rate_starts, x_rate) -> list[tuple]:
     return out
 
 
-def _problems(entries, classes, max_iter, integration, slopes):
+def _problems(entries, classes, max_iter, integration, relative):
     """Each fit's vector layout, Levenberg-Marquardt problem and bounds, one
     per entry (`_entries`); at m = 1 sub-step (`_held`) a `substep_only`
-    parameter is held at its default. A candidate with a stack in `slopes`
-    (`_slope_stacks`) takes its columns apart there.
+    parameter is held at its default. A candidate with a stack in `relative`
+    (`_relative_stacks`) takes its columns and scan (`Relative`) there.
 
     Returns (layouts, problems, scales): layouts as (name, CandidateLayout,
     frozen effect parameters, effect start); scales as (lower, upper, scale).
@@ -409,7 +410,7 @@ def _problems(entries, classes, max_iter, integration, slopes):
                 *bounds,
                 max_iter=max_iter,
                 scan=RATE_LAYOUT.static_indices,
-                slopes_apart=slopes[n] is not None,
+                relative=relative[n] is not None,
             )
         )
     return layouts, problems, scales
@@ -534,7 +535,7 @@ def shape_groups(values: np.ndarray) -> list[list[int]]:
     return groups
 
 
-def _consensus_shapes(layouts, fits, scales, max_iter, evaluate, slopes) -> list[FitResult]:
+def _consensus_shapes(layouts, fits, scales, max_iter, evaluate, relative) -> list[FitResult]:
     """Each fit refitted from the regimes whose friction shape lies far from
     the others' given their shape (`consensus_shapes`; the best of those
     starts, one batched simulation), kept where that fits the training runs
@@ -561,7 +562,7 @@ def _consensus_shapes(layouts, fits, scales, max_iter, evaluate, slopes) -> list
             x,
             *_shape_bounds(x, scales[i]),
             max_iter=max_iter,
-            slopes_apart=slopes[layouts[i][0]] is not None,
+            relative=relative[layouts[i][0]] is not None,
         )
         for i, x in starts
     ]

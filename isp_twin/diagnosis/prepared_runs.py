@@ -57,7 +57,7 @@ __all__ = [
 #: no restart at the noise (it turned input delay seed 0 tentative,
 #: docs/diagnosis.md "Stop 26"). The Jacobian's columns are identify's
 #: (`JACOBIAN_SUBSTEPS` sub-steps where no held effect needs the model's
-#: own, `slope_stack`), as are the candidates' (docs/diagnosis.md "Stop 84").
+#: own, `relative_stack`), as are the candidates' (docs/diagnosis.md "Stop 84").
 DIAGNOSE_FIT = {"regime_spread": None, "restart_at_noise": False}
 
 #: `side_choice` keeps the raw angle only where it fits the starting model

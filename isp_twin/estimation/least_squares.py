@@ -30,7 +30,7 @@ import numpy as np
 __all__ = [
     "FitResult",
     "FitStatus",
-    "Slopes",
+    "Relative",
     "TrustRegionResult",
     "levenberg_marquardt",
     "lm_steps",
@@ -69,13 +69,14 @@ class FitResult:
 
 
 @dataclass(frozen=True)
-class Slopes:
-    """What `lm_steps` yields for its finite-difference columns when asked
-    to take them apart (``slopes_apart``): the linearisation point first,
-    then one point per column, (n + 1, n). The evaluator may simulate them
-    with a cheaper model (diagnose: fewer sub-steps,
-    `isp_twin.estimation.simulation_error.JACOBIAN_SUBSTEPS`); the columns
-    are differences within that set, so they are that model's slopes."""
+class Relative:
+    """Points whose residuals `lm_steps` only compares among themselves, as
+    it yields them with ``relative``: a Jacobian's finite-difference set
+    (its linearisation point first, then one point per column) and the
+    static scan's (the start first, then the scanned points). The evaluator
+    may simulate them with a cheaper model (diagnose: fewer sub-steps,
+    `isp_twin.estimation.simulation_error.JACOBIAN_SUBSTEPS`): the columns
+    are then that model's slopes, the scan that model's ranking."""
 
     points: np.ndarray
 
@@ -90,8 +91,8 @@ def lm_steps(
     rel_step: float = 1e-3,
     scan: Sequence[int] = (),
     scan_factors: Sequence[float] = (0.6, 0.7, 0.8, 0.9, 0.95, 1.05, 1.1, 1.2, 1.35, 1.5),
-    slopes_apart: bool = False,
-) -> Generator[np.ndarray | Slopes, np.ndarray, FitResult]:
+    relative: bool = False,
+) -> Generator[np.ndarray | Relative, np.ndarray, FitResult]:
     """Levenberg-Marquardt as a generator: it yields the points it needs,
     shape (P, n), receives their residuals, shape (P, M), and returns the
     `FitResult`. `solve_many` drives several in lockstep, so one batched
@@ -102,20 +103,19 @@ def lm_steps(
     thresholds such as the breakaway torque change the cost in steps that a
     finite difference does not see.
 
-    With `slopes_apart`, each iteration's columns are asked for as `Slopes`
-    (the evaluator's cheaper model); every step is still accepted on the
-    residuals of plain points, and the returned `FitResult.jacobian`
-    (the intervals') is one more set of plain columns at the end point.
+    With `relative`, each iteration's columns and the scan are asked for as
+    `Relative` (the evaluator's cheaper model); every step, and the scan's
+    choice, is still accepted on the residuals of plain points, and the
+    returned `FitResult.jacobian` (the intervals') is one more set of plain
+    columns at the end point.
     """
     x = np.clip(np.asarray(x0, float), lower, upper)
     r = (yield x[None])[0]
     sse = float(r @ r)
     if len(scan):
-        x, r, sse = yield from _scanned(x, r, sse, lower, upper, scan, scan_factors)
-    fit = yield from _iterations(
-        x, r, sse, lower, upper, scale, max_iter, rtol, rel_step, slopes_apart
-    )
-    if slopes_apart and fit.x.size:
+        x, r, sse = yield from _scanned(x, r, sse, lower, upper, scan, scan_factors, relative)
+    fit = yield from _iterations(x, r, sse, lower, upper, scale, max_iter, rtol, rel_step, relative)
+    if relative and fit.x.size:
         jac = yield from _jacobian(fit.x, fit.residual, scale, upper, rel_step)
         fit = replace(fit, jacobian=jac)
     return fit
@@ -124,20 +124,27 @@ def lm_steps(
 _Steps = Generator[np.ndarray, np.ndarray, tuple]
 
 
-def _scanned(x, r, sse, lower, upper, scan, scan_factors) -> _Steps:
-    """`lm_steps`' one-at-a-time scan of the parameters in `scan`; (x, r, sse) after it."""
+def _scanned(x, r, sse, lower, upper, scan, scan_factors, relative=False) -> _Steps:
+    """`lm_steps`' one-at-a-time scan of the parameters in `scan`; (x, r, sse)
+    after it. `relative`: the scanned points are compared with x simulated
+    with them (`Relative`), the choice then checked on x's plain sse."""
     factors = np.asarray(scan_factors, float)
     pts = np.repeat(x[None], len(scan) * factors.size, axis=0)
     for j, i in enumerate(scan):
         pts[j * factors.size : (j + 1) * factors.size, i] = x[i] * factors
     pts = np.clip(pts, lower, upper)
-    rs = yield pts
+    base = sse
+    if relative:
+        rs = yield Relative(np.vstack([x[None], pts]))
+        base, rs = float(rs[0] @ rs[0]), rs[1:]
+    else:
+        rs = yield pts
     sses = np.einsum("ij,ij->i", rs, rs).reshape(len(scan), factors.size)
     sses = np.where(np.isfinite(sses), sses, np.inf)
     trial = x.copy()
     for j, i in enumerate(scan):
         k = int(np.argmin(sses[j]))
-        if sses[j, k] < sse:
+        if sses[j, k] < base:
             trial[i] = pts[j * factors.size + k, i]
     if np.any(trial != x):
         rt = (yield trial[None])[0]
@@ -147,8 +154,8 @@ def _scanned(x, r, sse, lower, upper, scan, scan_factors) -> _Steps:
 
 
 def _iterations(
-    x, r, sse, lower, upper, scale, max_iter, rtol, rel_step, slopes_apart=False
-) -> Generator[np.ndarray | Slopes, np.ndarray, FitResult]:
+    x, r, sse, lower, upper, scale, max_iter, rtol, rel_step, relative=False
+) -> Generator[np.ndarray | Relative, np.ndarray, FitResult]:
     """`lm_steps`' damped Gauss-Newton iterations from x (three dampings tried per iteration)."""
     n = x.size
     lam = 1e-2
@@ -159,7 +166,7 @@ def _iterations(
         if n == 0:
             status = FitStatus.CONVERGED
             break
-        jac = yield from _jacobian(x, r, scale, upper, rel_step, slopes_apart)
+        jac = yield from _jacobian(x, r, scale, upper, rel_step, relative)
         lams = lam * np.array([0.1, 1.0, 10.0])
         trials = _damped_steps(jac, r, x, scale, lower, upper, lams)
         rt = yield trials
@@ -185,14 +192,14 @@ def _iterations(
 
 def _jacobian(
     x, r, scale, upper, rel_step, apart: bool = False
-) -> Generator[np.ndarray | Slopes, np.ndarray, np.ndarray]:
+) -> Generator[np.ndarray | Relative, np.ndarray, np.ndarray]:
     """Forward differences at x (one batched evaluation), (M, n); `apart`:
-    from x's residuals simulated with the columns (`Slopes`), not from r."""
+    from x's residuals simulated with the columns (`Relative`), not from r."""
     h = rel_step * scale
     step = np.where(x + h <= upper, h, -h)
     pts = x[None] + np.diag(step)
     if apart:
-        rs = yield Slopes(np.vstack([x[None], pts]))
+        rs = yield Relative(np.vstack([x[None], pts]))
         jac = ((rs[1:] - rs[0][None]) / step[:, None]).T
     else:
         jac = (((yield pts) - r[None]) / step[:, None]).T  # (M, n)

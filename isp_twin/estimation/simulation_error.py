@@ -44,13 +44,14 @@ __all__ = [
     "predict_one",
     "residuals",
     "residuals_many",
-    "slope_stack",
+    "relative_stack",
     "stack_runs",
 ]
 
 #: Sub-steps per sample of the finite-difference columns both commands'
-#: least squares simulate where the model integrates more (`slope_stack`;
-#: identify's `Settings.jacobian_substeps` default). A column is the slope
+#: least squares simulate where the model integrates more, and of diagnose's
+#: static scan (`relative_stack`; identify's `Settings.jacobian_substeps`
+#: default). A column is the slope
 #: of the model's response; the truth integrated in 4 sub-steps fits the
 #: reference runs within 0.02 noise floors of 10 on 39 of 40 clean dev
 #: axes (seeds 1000-1039, docs/identification.md "Stop 83"), and a step the
@@ -350,14 +351,15 @@ def _initial_rates(stack: RunStack, effects: Sequence, p: int) -> np.ndarray:
     return rate
 
 
-def slope_stack(
+def relative_stack(
     stack: RunStack, effects: Sequence[str], substeps: int | None = JACOBIAN_SUBSTEPS
 ) -> RunStack | None:
     """`stack` integrated with `substeps` sub-steps per sample, for the
-    finite-difference columns of a model with the `effects` (names); None
-    where the columns take the model's own: `substeps` None, not below the
-    stack's, or an effect whose slopes need the model's own
-    (`Effect.fine_slopes`)."""
+    points the least squares of a model with the `effects` (names) only
+    compare among themselves (finite-difference columns, diagnose's static
+    scan: `isp_twin.estimation.least_squares.Relative`); None where they
+    take the model's own: `substeps` None, not below the stack's, or an
+    effect whose slopes need the model's own (`Effect.fine_slopes`)."""
     own = stack.integration.substeps
     if substeps is None or own <= substeps:
         return None

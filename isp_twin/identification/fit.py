@@ -79,7 +79,7 @@ from isp_twin.errors import DataError, ParameterError
 from isp_twin.estimation.intervals import Intervals, confidence_intervals
 from isp_twin.estimation.least_squares import FitStatus, trust_region
 from isp_twin.estimation.parameter_file import fitted_axis
-from isp_twin.estimation.simulation_error import JACOBIAN_SUBSTEPS, RunStack, slope_stack
+from isp_twin.estimation.simulation_error import JACOBIAN_SUBSTEPS, RunStack, relative_stack
 from isp_twin.identification.cost import rate_noise, residuals, rmse, run_stack
 from isp_twin.identification.measured import MeasuredData
 from isp_twin.identification.read_out import TIMINGS, Timing, fitted_with
@@ -501,10 +501,10 @@ class _Search:
         (`Settings.jacobian_substeps`; the refinement's columns were 20 of
         the 21 simulated sets of a Jacobian evaluation and took 70 % of a
         clean identify, reference seed 443: 21 of 30 s); None where the
-        columns take the model's own (`slope_stack`: as many sub-steps, or
+        columns take the model's own (`relative_stack`: as many sub-steps, or
         a held effect whose slopes need them)."""
         m = self.s.jacobian_substeps
-        if slope_stack(self._model()[0], [e.name for e in self.effects], m) is None:
+        if relative_stack(self._model()[0], [e.name for e in self.effects], m) is None:
             return None
         return self._model(replace(self.s.integration, substeps=m))
 
