@@ -134,8 +134,9 @@ def test_slope_stack_rules(stack):
     assert relative_stack(four, []) is None  # not below the model's own
 
 
-def test_fine_slopes_are_the_payload_mode_and_the_delay():
-    assert {n for n in EFFECTS if effect_class(n).fine_slopes} == {"input_delay", "resonance"}
+def test_fine_slopes_are_the_effects_in_the_substeps_and_the_delay():
+    fine = {n for n in EFFECTS if effect_class(n).fine_slopes}
+    assert fine == {"input_delay", "resonance", "lugre"}
 
 
 def _substeps_asked(stack, monkeypatch, names, fixed=()) -> dict:

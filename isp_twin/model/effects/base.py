@@ -41,12 +41,15 @@ class Effect:
     substep_only: ClassVar[tuple[str, ...]] = ()
     #: True where a finite-difference slope of the model needs the model's
     #: own sub-steps, not the least squares' coarser ones
-    #: (`isp_twin.estimation.simulation_error.JACOBIAN_SUBSTEPS`): a payload
-    #: mode, or an action resolved to one sub-step (a fractional input
-    #: delay). With 4 sub-steps for 10, the truth of such a dev axis fits
-    #: the reference runs up to 1.7 noise floors worse; a LuGre axis's (its
-    #: bristles in the sub-steps too) at most 0.07 worse, a rigid one's 0.02
-    #: (docs/identification.md "Stop 83").
+    #: (`isp_twin.estimation.simulation_error.JACOBIAN_SUBSTEPS`): a state
+    #: integrated in the sub-steps (a payload mode, LuGre's bristles), or an
+    #: action resolved to one sub-step (a fractional input delay). With 4
+    #: sub-steps for 10, the truth of a delay or payload dev axis fits the
+    #: reference runs up to 1.7 noise floors worse, a rigid one's 0.02
+    #: (docs/identification.md "Stop 83"); a LuGre axis's only 0.07, but
+    #: its read-out refit (reference LuGre 337) stopped at 3.7 noise floors
+    #: on training with 4-sub-step slopes, within 1.2 with 10
+    #: (`tests/test_read_out_global.py`; docs/diagnosis.md "Stop 84").
     fine_slopes: ClassVar[bool] = False
 
     def __init__(self, params: Mapping[str, float], dt: float = 1e-3):

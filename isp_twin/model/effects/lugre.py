@@ -58,6 +58,9 @@ class LuGre(Effect):
     #: sub-step (`isp_twin.model.substep_model`); `acceleration` serves Eq. 6
     #: and the twin.
     in_substeps = True
+    #: The read-out refit of reference LuGre 337 needs the model's own slopes
+    #: (`Effect.fine_slopes`).
+    fine_slopes = True
 
     def substep_columns(self, dt: float, m: int) -> dict[str, object]:
         """The bristle drive at full deflection ``accel_rad_s2 * dt`` [rad/s per
