@@ -191,14 +191,14 @@ def _iterations(
 
 
 def _jacobian(
-    x, r, scale, upper, rel_step, apart: bool = False
+    x, r, scale, upper, rel_step, relative: bool = False
 ) -> Generator[np.ndarray | Relative, np.ndarray, np.ndarray]:
-    """Forward differences at x (one batched evaluation), (M, n); `apart`:
+    """Forward differences at x (one batched evaluation), (M, n); `relative`:
     from x's residuals simulated with the columns (`Relative`), not from r."""
     h = rel_step * scale
     step = np.where(x + h <= upper, h, -h)
     pts = x[None] + np.diag(step)
-    if apart:
+    if relative:
         rs = yield Relative(np.vstack([x[None], pts]))
         jac = ((rs[1:] - rs[0][None]) / step[:, None]).T
     else:
